@@ -1,0 +1,221 @@
+// levelforge — Houdini-like operators, declared as data.
+//
+// An operator (think SOP: *VDB from Polygons*) declares in ONE place its name, a one-line help,
+// its positional inputs and outputs, its parameters (Houdini parm templates: name, type,
+// label, default, range, help) and its cook function. Everything else is generated from that
+// declaration by OperatorRegistry: `levelforge --help`, `levelforge <op> --help`, command-line
+// parsing (CLI11), type and range checks and their error messages. Operators can also be
+// cooked from C++ (OperatorArgs::set + OperatorSpec::cook), which runs the same checks.
+//
+// Adding an operator = adding one file to houdini_like_tools/operators/:
+//
+//     namespace levelforge::ops {
+//     namespace {
+//     void cookSmooth(OperatorArgs& args) { ... args.getFloat("radius") ... }
+//     }
+//     LEVELFORGE_REGISTER_OPERATOR(
+//         OperatorSpec("smooth", "Smooth a level set (like VDB Smooth SDF)")
+//             .input("input", ".vdb file with a level set")
+//             .output("output", ".vdb file to write")
+//             .param(Param::floating("radius", "Filter Radius", "Filter radius, in voxels")
+//                        .defaultValue(1.0).range(0.0, 16.0, Bound::Exclusive, Bound::Inclusive))
+//             .param(Param::flag("quiet", "Quiet", "Print no progress"))
+//             .cook(cookSmooth));
+//     }
+//
+// Names are kebab-case and become `--name` options; inputs and outputs become positionals, in
+// declaration order.
+#pragma once
+
+#include <levelforge/Exceptions.h>
+
+#include <cstdint>
+#include <functional>
+#include <iosfwd>
+#include <map>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+namespace levelforge::ops {
+
+/// A parameter value given on the command line (or via OperatorArgs::set) is invalid:
+/// not a number, out of the declared range, not one of the choices, an unknown name, or
+/// excluded by another parameter that was also given. The CLI exits with status 2.
+class UsageError : public InvalidArgumentError
+{
+public:
+    explicit UsageError(const std::string& msg) : InvalidArgumentError(msg) {}
+};
+
+enum class ParamType { Int, Float, String, Bool, Enum };
+enum class Bound { Inclusive, Exclusive };
+
+/// "int", "float", "string", "bool", "enum".
+const char* toString(ParamType type);
+
+/// One parameter: what a Houdini parm template says. Build with the factory functions and the
+/// chainable setters, e.g.
+///     Param::floating("voxel-size", "Voxel Size", "Voxel edge length, world units").above(0)
+struct Param
+{
+    std::string name;                 ///< kebab-case, becomes `--name`
+    ParamType type = ParamType::Float;
+    std::string label;                ///< Houdini-style label ("Exterior Band Voxels")
+    std::string help;                 ///< one sentence; say the units
+    std::optional<std::string> defaultText; ///< default as text; nullopt: no value unless given
+    std::optional<double> min, max;   ///< range of Int / Float values
+    Bound minBound = Bound::Inclusive, maxBound = Bound::Inclusive;
+    std::vector<std::string> choices; ///< allowed values of an Enum
+    std::vector<std::string> excludes;///< parameters that may not be given together with this one
+
+    static Param integer(std::string name, std::string label, std::string help);
+    static Param floating(std::string name, std::string label, std::string help);
+    static Param string(std::string name, std::string label, std::string help);
+    /// A switch (`--quiet`); false unless given.
+    static Param flag(std::string name, std::string label, std::string help);
+    static Param choice(std::string name, std::string label, std::string help,
+                        std::vector<std::string> choices);
+
+    Param& defaultValue(double v);
+    Param& defaultValue(int v) { return defaultValue(static_cast<double>(v)); }
+    Param& defaultValue(const char* v) { return defaultValue(std::string(v)); }
+    Param& defaultValue(std::string v);
+    Param& range(double lo, double hi, Bound loBound = Bound::Inclusive,
+                 Bound hiBound = Bound::Inclusive);
+    Param& above(double lo) { min = lo; minBound = Bound::Exclusive; return *this; }   ///< > lo
+    Param& atLeast(double lo) { min = lo; minBound = Bound::Inclusive; return *this; } ///< >= lo
+    Param& below(double hi) { max = hi; maxBound = Bound::Exclusive; return *this; }   ///< < hi
+    Param& atMost(double hi) { max = hi; maxBound = Bound::Inclusive; return *this; }  ///< <= hi
+    Param& exclusiveWith(std::string otherName);
+
+    /// "--name".
+    std::string option() const { return "--" + name; }
+    /// The declared range in words, e.g. "(0, 1000]", "> 0", ">= 1"; empty when unbounded.
+    std::string rangeText() const;
+    /// Placeholder shown in help: INT, FLOAT, TEXT, or {a|b|c}.
+    std::string metavar() const;
+};
+
+/// A positional input or output (a file path, or a name such as builtin:torus-knot).
+struct Port
+{
+    std::string name;
+    std::string help;
+};
+
+using ParamValue = std::variant<int64_t, double, std::string, bool>;
+
+/// Converts `text` to a value of `param`'s type and checks the range and choices. Floats must
+/// be finite. Throws UsageError naming the parameter, e.g.
+/// "invalid value '0' for --voxel-size (Voxel Size): must be > 0".
+ParamValue parseParamValue(const Param& param, const std::string& text);
+
+class OperatorArgs;
+using CookFunction = std::function<void(OperatorArgs&)>;
+
+/// The whole declaration of one operator.
+class OperatorSpec
+{
+public:
+    OperatorSpec() = default;
+    OperatorSpec(std::string name, std::string help);
+
+    OperatorSpec& description(std::string text); ///< optional paragraph shown in --help
+    OperatorSpec& input(std::string name, std::string help);
+    OperatorSpec& output(std::string name, std::string help);
+    OperatorSpec& param(Param p);
+    OperatorSpec& example(std::string commandLine); ///< shown in --help
+    OperatorSpec& cook(CookFunction fn);
+
+    const std::string& name() const { return mName; }
+    const std::string& help() const { return mHelp; }
+    const std::string& descriptionText() const { return mDescription; }
+    const std::vector<Port>& inputs() const { return mInputs; }
+    const std::vector<Port>& outputs() const { return mOutputs; }
+    const std::vector<Param>& params() const { return mParams; }
+    const std::vector<std::string>& examples() const { return mExamples; }
+    const CookFunction& cookFunction() const { return mCook; }
+
+    /// nullptr if there is no such parameter.
+    const Param* findParam(const std::string& name) const;
+    /// Throws std::logic_error describing the first inconsistency in the declaration (duplicate
+    /// or malformed names, a default outside its range, an unknown exclusion, no cook function).
+    void checkDeclaration() const;
+    /// Generated `levelforge <op> --help` text.
+    std::string helpText(const std::string& program = "levelforge") const;
+
+private:
+    std::string mName, mHelp, mDescription;
+    std::vector<Port> mInputs, mOutputs;
+    std::vector<Param> mParams;
+    std::vector<std::string> mExamples;
+    CookFunction mCook;
+};
+
+/// Parameter values and positional paths for one cook, plus the streams to report on.
+/// Values not given fall back to the declared defaults.
+class OperatorArgs
+{
+public:
+    /// Streams default to std::cout / std::cerr.
+    explicit OperatorArgs(const OperatorSpec& spec);
+    OperatorArgs(const OperatorSpec& spec, std::ostream& out, std::ostream& err);
+
+    const OperatorSpec& spec() const { return *mSpec; }
+
+    /// Sets a parameter from text (parsed and range-checked: UsageError on failure).
+    OperatorArgs& set(const std::string& name, const std::string& text);
+    /// Sets a flag (Bool parameter) on or off.
+    OperatorArgs& setFlag(const std::string& name, bool on = true);
+    /// Sets a positional input or output by its declared name.
+    OperatorArgs& setPort(const std::string& name, const std::string& value);
+
+    /// True if the parameter was given explicitly (not just defaulted).
+    bool isSet(const std::string& name) const;
+    /// True if the parameter has a value (given, or declared with a default).
+    bool has(const std::string& name) const;
+
+    int64_t getInt(const std::string& name) const;
+    double getFloat(const std::string& name) const;
+    const std::string& getString(const std::string& name) const; ///< String and Enum
+    bool getBool(const std::string& name) const;
+    /// Positional input / output by declared name.
+    const std::string& input(const std::string& name) const;
+    const std::string& output(const std::string& name) const;
+
+    /// Throws UsageError if a declared positional is missing or two mutually exclusive
+    /// parameters were both given.
+    void checkComplete() const;
+    /// checkComplete(), then runs the operator's cook function.
+    void cook();
+
+    std::ostream& out() const { return *mOut; }
+    std::ostream& err() const { return *mErr; }
+
+private:
+    const ParamValue& value(const std::string& name, ParamType expected) const;
+
+    const OperatorSpec* mSpec;
+    std::ostream* mOut;
+    std::ostream* mErr;
+    std::map<std::string, ParamValue> mValues;   ///< given explicitly
+    std::map<std::string, ParamValue> mDefaults; ///< parsed declared defaults
+    std::map<std::string, std::string> mPorts;
+};
+
+/// Adds `spec` to OperatorRegistry::global() during static initialisation.
+struct OperatorRegistrar
+{
+    explicit OperatorRegistrar(OperatorSpec spec);
+};
+
+#define LEVELFORGE_OPS_CONCAT_INNER(a, b) a##b
+#define LEVELFORGE_OPS_CONCAT(a, b) LEVELFORGE_OPS_CONCAT_INNER(a, b)
+/// Registers an operator declaration; use once per operator file, at namespace scope.
+#define LEVELFORGE_REGISTER_OPERATOR(...)                                                         \
+    static const ::levelforge::ops::OperatorRegistrar LEVELFORGE_OPS_CONCAT(                      \
+        levelforgeOperatorRegistrar_, __LINE__){__VA_ARGS__}
+
+} // namespace levelforge::ops

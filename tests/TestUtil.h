@@ -1,0 +1,47 @@
+// Shared helpers for the levelforge test suite.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+namespace levelforge_test {
+
+/// ../shared/data (or $LEVELFORGE_SHARED_DATA); empty string when absent.
+inline std::string sharedDataDir()
+{
+    if (const char* env = std::getenv("LEVELFORGE_SHARED_DATA")) {
+        if (std::filesystem::is_directory(env)) return env;
+    }
+#ifdef LEVELFORGE_SHARED_DATA_DIR
+    if (std::filesystem::is_directory(LEVELFORGE_SHARED_DATA_DIR)) return LEVELFORGE_SHARED_DATA_DIR;
+#endif
+    return {};
+}
+
+/// Path of a file under ../shared/data, or skips the current test with a message.
+#define LEVELFORGE_SHARED_FILE_OR_SKIP(var, relative)                                             \
+    std::string var;                                                                              \
+    do {                                                                                          \
+        const std::string dir_ = ::levelforge_test::sharedDataDir();                              \
+        if (dir_.empty()) GTEST_SKIP() << "../shared/data not present; skipping " << relative;    \
+        var = dir_ + "/" + relative;                                                              \
+        if (!std::filesystem::exists(var)) GTEST_SKIP() << var << " not present; skipping";       \
+    } while (0)
+
+/// A fresh scratch directory for one test.
+inline std::filesystem::path scratchDir(const std::string& name)
+{
+#ifdef LEVELFORGE_TEST_TMP_DIR
+    std::filesystem::path p = std::filesystem::path(LEVELFORGE_TEST_TMP_DIR) / name;
+#else
+    std::filesystem::path p = std::filesystem::temp_directory_path() / ("levelforge_" + name);
+#endif
+    std::filesystem::remove_all(p);
+    std::filesystem::create_directories(p);
+    return p;
+}
+
+} // namespace levelforge_test
