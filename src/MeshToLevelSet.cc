@@ -17,6 +17,9 @@
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -77,6 +80,8 @@ struct Scratch
     std::vector<uint32_t> cellIdx;    // per gathered cell (temporary): region index
     std::vector<uint32_t> localList;  // lists with leaf-local triangle ids
     std::vector<PreparedTri> tris;
+    std::vector<float> soa, lb2;  // lower-bound planes (16 SoA arrays) and per-voxel bounds
+    std::vector<uint32_t> surv;
     std::vector<uint32_t> hashKey, hashVal;
     std::vector<uint32_t> stamp;
     uint32_t gen = 0;
@@ -95,6 +100,42 @@ struct Context
     std::vector<RowOffset> rows;
     float background;
 };
+
+/// lb2[i] = plane_i(p)² + max(0, edge lines_i(p))² for the SoA bound planes F[0..15];
+/// n is a multiple of 8. Appends to surv the indices with lb2 < bm2 and returns their count. SSE2 on x86-64 (4 triangles per instruction), scalar elsewhere.
+uint32_t computeBounds(float* const* F, size_t n, float px, float py, float pz, float bm2, float* __restrict lb2,
+                       uint32_t* __restrict surv)
+{
+    uint32_t ns = 0;
+#if defined(__SSE2__)
+    const __m128 X = _mm_set1_ps(px), Y = _mm_set1_ps(py), Z = _mm_set1_ps(pz), zero = _mm_setzero_ps();
+    auto plane = [&](int f, size_t i) {
+        const __m128 v = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_loadu_ps(F[f] + i), X), _mm_mul_ps(_mm_loadu_ps(F[f + 1] + i), Y)),
+                                    _mm_mul_ps(_mm_loadu_ps(F[f + 2] + i), Z));
+        return _mm_sub_ps(v, _mm_loadu_ps(F[f + 3] + i));
+    };
+    for (size_t i = 0; i < n; i += 4) {
+        const __m128 pd = plane(0, i);
+        const __m128 e = _mm_max_ps(_mm_max_ps(plane(4, i), plane(8, i)), _mm_max_ps(plane(12, i), zero));
+        const __m128 l = _mm_add_ps(_mm_mul_ps(pd, pd), _mm_mul_ps(e, e));
+        _mm_storeu_ps(lb2 + i, l);
+        int m = _mm_movemask_ps(_mm_cmplt_ps(l, _mm_set1_ps(bm2)));
+        while (m) {
+            surv[ns++] = uint32_t(i) + uint32_t(__builtin_ctz(unsigned(m)));
+            m &= m - 1;
+        }
+    }
+#else
+    for (size_t i = 0; i < n; ++i) {
+        auto plane = [&](int f) { return F[f][i] * px + F[f + 1][i] * py + F[f + 2][i] * pz - F[f + 3][i]; };
+        const float pd = plane(0);
+        const float e = std::max(std::max(plane(4), plane(8)), std::max(plane(12), 0.0f));
+        lb2[i] = pd * pd + e * e;
+        if (lb2[i] < bm2) surv[ns++] = uint32_t(i);
+    }
+#endif
+    return ns;
+}
 
 /// Fills one output leaf with origin `origin`; returns nullptr if no voxel is active.
 FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
@@ -182,233 +223,134 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
         }
     if (!anyReach) return nullptr;
 
-    // ---- leaf-local triangle table (open addressing), lists rewritten with local ids
+    // ---- the leaf's triangle set T: every triangle listed in a boundary cell of the region.
+    // Any triangle closer than `limit` to a voxel of this leaf has its closest point in such a
+    // cell (the layer rule of §4.1 bounds the cell's minimum distance), so T is complete.
     size_t hsize = 64;
     while (hsize < 2 * entries) hsize <<= 1;
     const uint32_t hmask = uint32_t(hsize - 1);
     s.hashKey.assign(hsize, kNone);
-    if (s.hashVal.size() < hsize) s.hashVal.resize(hsize);
     s.tris.clear();
-    s.localList.clear();
     for (size_t k = 0; k < s.cellOrd.size(); ++k) {
-        const uint32_t ord = s.cellOrd[k], idx = s.cellIdx[k];
-        s.cellStart[idx] = uint32_t(s.localList.size());
-        s.cellCount[idx] = ctx.lists.listSize(ord);
+        const uint32_t ord = s.cellOrd[k];
         for (const uint32_t* t = ctx.lists.listBegin(ord); t != ctx.lists.listEnd(ord); ++t) {
             uint32_t h = (*t * 2654435761u) & hmask;
             while (s.hashKey[h] != kNone && s.hashKey[h] != *t) h = (h + 1) & hmask;
-            if (s.hashKey[h] == kNone) {
-                s.hashKey[h] = *t;
-                s.hashVal[h] = uint32_t(s.tris.size());
-                const Vec3I& tri = ctx.mesh.triangles[*t];
-                PreparedTri p;
-                p.a = ctx.cellPts[tri[0]];
-                p.b = ctx.cellPts[tri[1]];
-                p.c = ctx.cellPts[tri[2]];
-                p.lo = minComponent(minComponent(p.a, p.b), p.c);
-                p.hi = maxComponent(maxComponent(p.a, p.b), p.c);
-                p.n = ctx.normals.faceNormal(*t);
-                p.offset = p.n.dot(p.a);
-                p.id = *t;
-                s.tris.push_back(p);
-            }
-            s.localList.push_back(s.hashVal[h]);
+            if (s.hashKey[h] != kNone) continue;
+            s.hashKey[h] = *t;
+            const Vec3I& tri = ctx.mesh.triangles[*t];
+            PreparedTri p;
+            p.a = ctx.cellPts[tri[0]];
+            p.b = ctx.cellPts[tri[1]];
+            p.c = ctx.cellPts[tri[2]];
+            p.id = *t;
+            s.tris.push_back(p);
         }
     }
-    if (s.stamp.size() < s.tris.size()) s.stamp.resize(s.tris.size(), 0);
+    // Lower-bound planes in single precision, relative to the leaf centre (small numbers):
+    // the triangle's plane and the three in-plane edge lines (outward normals). For a point p,
+    // dist² ≥ plane(p)² + max(0, edge_k(p))², exact in face and edge regions.
+    const size_t nT = s.tris.size(), nTpad = (nT + 7) & ~size_t(7);
+    s.soa.assign(16 * nTpad, 0.0f);
+    float* F[16];
+    for (int f = 0; f < 16; ++f) F[f] = s.soa.data() + f * nTpad;
+    const Vec3d centre(origin.x() + 4.0, origin.y() + 4.0, origin.z() + 4.0);
+    for (size_t i = 0; i < nT; ++i) {
+        const PreparedTri& t = s.tris[i];
+        const Vec3d& n = ctx.normals.faceNormal(t.id);
+        const Vec3d v[3] = {t.a - centre, t.b - centre, t.c - centre};
+        F[0][i] = float(n[0]); F[1][i] = float(n[1]); F[2][i] = float(n[2]); F[3][i] = float(n.dot(v[0]));
+        for (int k = 0; k < 3; ++k) {
+            Vec3d m = (v[(k + 1) % 3] - v[k]).cross(n);
+            const double len = m.length();
+            m = len > 0.0 ? m / len : Vec3d(0.0);
+            float* E = &F[4 + 4 * k][0];
+            (void)E;
+            F[4 + 4 * k][i] = float(m[0]);
+            F[5 + 4 * k][i] = float(m[1]);
+            F[6 + 4 * k][i] = float(m[2]);
+            F[7 + 4 * k][i] = float(m.dot(v[k]));
+        }
+    }
+    for (size_t i = nT; i < nTpad; ++i) F[3][i] = 1e30f; // padding never survives
+    if (s.lb2.size() < nTpad) { s.lb2.resize(nTpad); s.surv.resize(nTpad); }
 
-    // ---- distances, 2×2×2 voxels at a time (Chang §4.1 layered culling, per sub-block):
-    //  1. a seed triangle (the previous sub-block's closest) bounds every voxel's distance from
-    //     above: U = max over the sub-block's voxels of their distance to the seed (≤ limit);
-    //  2. only boundary cells whose minimum distance to the sub-block is below U can hold a
-    //     closer triangle; their triangles, deduplicated, whose bounding box and plane are also
-    //     closer than U, are the sub-block's candidates, sorted by that lower bound;
-    //  3. each voxel walks the candidates while their bound is below its current best, testing
-    //     the triangle's own box and plane before an exact point–triangle evaluation.
-    //  The sign is the pseudonormal of the closest feature (§4.2).
+    // ---- per voxel (Chang §4.1 culling, with triangle-level bounds instead of cell groups):
+    // the previous voxel's closest triangle gives an upper bound; the bounds of all of T are
+    // computed in one vectorised pass; survivors are evaluated exactly in increasing bound
+    // order until the bound passes the best distance. The sign is the pseudonormal of the
+    // closest feature (§4.2).
     auto* out = new FloatLeaf(origin, ctx.background, false);
     uint64_t active = 0;
     const float bg = ctx.background;
+    constexpr double kMargin = 1e-3; // cells; covers the single-precision rounding of the bounds
     auto bitAt = [&](int x, int y, int z) {
         return (s.bits[rowIndex(x, y) * W + (z >> 6)] >> (z & 63)) & 1ull;
     };
-    // Full layered search for one voxel (used once per leaf, to find a first seed).
-    auto searchVoxel = [&](const Vec3d& p, int cx, int cy, int cz) -> uint32_t {
-        if (++s.gen == 0) { std::fill(s.stamp.begin(), s.stamp.end(), 0u); s.gen = 1; }
-        const uint32_t gen = s.gen;
-        double best2 = ctx.limit2;
-        uint32_t bestT = kNone;
-        const int lo = cz - R, hi = cz + R;
-        for (const RowOffset& row : ctx.rows) {
-            if (row.m2 >= best2) break;
-            const size_t rowI = rowIndex(cx + row.dx, cy + row.dy);
-            const uint64_t* rowBits = &s.bits[rowI * W];
-            for (int w = lo >> 6; w <= (hi >> 6); ++w) {
-                uint64_t word = rowBits[w];
-                if (!word) continue;
-                const int wlo = std::max(lo - (w << 6), 0), whi = std::min(hi - (w << 6), 63);
-                word &= (~0ull << wlo);
-                if (whi < 63) word &= ((2ull << whi) - 1ull);
-                while (word) {
-                    const int lz = (w << 6) + __builtin_ctzll(word);
-                    word &= word - 1;
-                    const double mdz = minAxisDist(lz - cz);
-                    if (row.m2 + mdz * mdz >= best2) continue;
-                    const size_t idx = rowI * D + lz;
-                    const uint32_t* L = s.localList.data() + s.cellStart[idx];
-                    for (uint32_t k = 0, n = s.cellCount[idx]; k < n; ++k) {
-                        const uint32_t lt = L[k];
-                        if (s.stamp[lt] == gen) continue;
-                        s.stamp[lt] = gen;
-                        const PreparedTri& t = s.tris[lt];
-                        if (boxDistanceSqr(p, t.lo, t.hi) >= best2) continue;
-                        ++s.evaluations;
-                        const double d2 = closestPointOnTriangle(p, t.a, t.b, t.c).distanceSqr;
-                        if (d2 < best2) { best2 = d2; bestT = lt; }
-                    }
-                }
-            }
-        }
-        return bestT;
-    };
-
-    std::vector<Cand>& cands = s.cands;
     uint32_t seed = kNone;
-    for (int bx = 0; bx < 4; ++bx) {
-        for (int by = 0; by < 4; ++by) {
-            for (int bz = 0; bz < 4; ++bz) {
-                // Reachable voxels of this sub-block.
-                int vox[8][3];
-                int nv = 0;
-                for (int i = 0; i < 2; ++i)
-                    for (int j = 0; j < 2; ++j) {
-                        const uint32_t r = reach[(2 * bx + i) * 8 + 2 * by + j];
-                        for (int k = 0; k < 2; ++k)
-                            if (r & (1u << (2 * bz + k))) {
-                                vox[nv][0] = 2 * bx + i; vox[nv][1] = 2 * by + j; vox[nv][2] = 2 * bz + k;
-                                ++nv;
-                            }
+    float* lb2 = s.lb2.data();
+    uint32_t* surv = s.surv.data();
+    for (int vx = 0; vx < 8; ++vx) {
+        for (int vy = 0; vy < 8; ++vy) {
+            uint32_t reachBits = reach[vx * 8 + vy];
+            const int cx = vx + R, cy = vy + R;
+            while (reachBits) {
+                const int vz = __builtin_ctz(reachBits);
+                reachBits &= reachBits - 1;
+                const int cz = vz + R;
+                ++s.candidateVoxels;
+                if (bitAt(cx, cy, cz) || bitAt(cx - 1, cy, cz) || bitAt(cx + 1, cy, cz) ||
+                    bitAt(cx, cy - 1, cz) || bitAt(cx, cy + 1, cz) || bitAt(cx, cy, cz - 1) ||
+                    bitAt(cx, cy, cz + 1))
+                    ++s.localCells;
+                const Vec3d p(origin.x() + vx + 0.5, origin.y() + vy + 0.5, origin.z() + vz + 0.5);
+                double best2 = ctx.limit2;
+                uint32_t bestT = kNone;
+                TriangleClosestPoint bestCp{Vec3d(0.0), 0.0, TriangleFeature::Face};
+                if (seed != kNone) {
+                    const PreparedTri& t = s.tris[seed];
+                    ++s.evaluations;
+                    const TriangleClosestPoint cp = closestPointOnTriangle(p, t.a, t.b, t.c);
+                    if (cp.distanceSqr < best2) { best2 = cp.distanceSqr; bestT = seed; bestCp = cp; }
+                }
+                // Bounds of every triangle of T (SIMD), survivors below the current best.
+                double bm = std::sqrt(best2) + kMargin;
+                float bm2 = float(bm * bm);
+                const uint32_t ns = computeBounds(F, nTpad, float(vx - 3.5), float(vy - 3.5), float(vz - 3.5), bm2, lb2, surv);
+                s.boundTests += nT;
+                // Evaluate survivors in increasing bound order (lazy selection: usually the first
+                // one is the closest and the next bound already exceeds it).
+                for (uint32_t done = 0; done < ns; ++done) {
+                    uint32_t pick = done;
+                    for (uint32_t k = done + 1; k < ns; ++k)
+                        if (lb2[surv[k]] < lb2[surv[pick]] || (lb2[surv[k]] == lb2[surv[pick]] && surv[k] < surv[pick])) pick = k;
+                    std::swap(surv[done], surv[pick]);
+                    const uint32_t lt = surv[done];
+                    if (lb2[lt] >= bm2) break;
+                    if (lt == seed) continue;
+                    const PreparedTri& t = s.tris[lt];
+                    ++s.evaluations;
+                    const TriangleClosestPoint cp = closestPointOnTriangle(p, t.a, t.b, t.c);
+                    if (cp.distanceSqr < best2) {
+                        best2 = cp.distanceSqr;
+                        bestT = lt;
+                        bestCp = cp;
+                        bm = std::sqrt(best2) + kMargin;
+                        bm2 = float(bm * bm);
                     }
-                if (nv == 0) continue;
-                Vec3d P[8];
-                for (int v = 0; v < nv; ++v)
-                    P[v] = Vec3d(origin.x() + vox[v][0] + 0.5, origin.y() + vox[v][1] + 0.5, origin.z() + vox[v][2] + 0.5);
-                if (seed == kNone)
-                    seed = searchVoxel(P[0], vox[0][0] + R, vox[0][1] + R, vox[0][2] + R);
-
-                // 1. upper bound from the seed
-                double best2[8];
-                uint32_t bestT[8];
-                TriangleClosestPoint bestCp[8];
-                double U2 = 0.0;
-                for (int v = 0; v < nv; ++v) {
-                    best2[v] = ctx.limit2;
-                    bestT[v] = kNone;
-                    if (seed != kNone) {
-                        const PreparedTri& t = s.tris[seed];
-                        ++s.evaluations;
-                        const TriangleClosestPoint cp = closestPointOnTriangle(P[v], t.a, t.b, t.c);
-                        if (cp.distanceSqr < best2[v]) { best2[v] = cp.distanceSqr; bestT[v] = seed; bestCp[v] = cp; }
-                    }
-                    U2 = std::max(U2, best2[v]);
                 }
 
-                // 2. candidates from the boundary cells within U of the sub-block
-                if (++s.gen == 0) { std::fill(s.stamp.begin(), s.stamp.end(), 0u); s.gen = 1; }
-                const uint32_t gen = s.gen;
-                if (seed != kNone) s.stamp[seed] = gen;
-                const int c0x = 2 * bx + R, c0y = 2 * by + R, c0z = 2 * bz + R; // first cell of the sub-block
-                const Vec3d blo(origin.x() + 2 * bx + 0.5, origin.y() + 2 * by + 0.5, origin.z() + 2 * bz + 0.5);
-                const Vec3d bhi = blo + Vec3d(1.0);
-                auto md = [](int c, int lo) { // min distance along an axis from cell c to centres lo, lo+1
-                    const int o = c < lo ? lo - c : (c > lo + 1 ? c - lo - 1 : 0);
-                    return minAxisDist(o);
-                };
-                cands.clear();
-                for (int x = c0x - R; x <= c0x + 1 + R; ++x) {
-                    const double mx = md(x, c0x), mx2 = mx * mx;
-                    if (mx2 >= U2) continue;
-                    for (int y = c0y - R; y <= c0y + 1 + R; ++y) {
-                        const double my = md(y, c0y), m2 = mx2 + my * my;
-                        if (m2 >= U2) continue;
-                        const size_t rowI = rowIndex(x, y);
-                        const uint64_t* rowBits = &s.bits[rowI * W];
-                        const int lo = c0z - R, hi = c0z + 1 + R;
-                        for (int w = lo >> 6; w <= (hi >> 6); ++w) {
-                            uint64_t word = rowBits[w];
-                            if (!word) continue;
-                            const int wlo = std::max(lo - (w << 6), 0), whi = std::min(hi - (w << 6), 63);
-                            word &= (~0ull << wlo);
-                            if (whi < 63) word &= ((2ull << whi) - 1ull);
-                            while (word) {
-                                const int lz = (w << 6) + __builtin_ctzll(word);
-                                word &= word - 1;
-                                const double mz = md(lz, c0z);
-                                if (m2 + mz * mz >= U2) continue;
-                                const size_t idx = rowI * D + lz;
-                                const uint32_t* L = s.localList.data() + s.cellStart[idx];
-                                for (uint32_t k = 0, n = s.cellCount[idx]; k < n; ++k) {
-                                    const uint32_t lt = L[k];
-                                    if (s.stamp[lt] == gen) continue;
-                                    s.stamp[lt] = gen;
-                                    const PreparedTri& t = s.tris[lt];
-                                    // box–box distance between the triangle's AABB and the sub-block
-                                    double lb2 = 0.0;
-                                    for (int a = 0; a < 3; ++a) {
-                                        const double e = t.lo[a] > bhi[a] ? t.lo[a] - bhi[a] : (blo[a] > t.hi[a] ? blo[a] - t.hi[a] : 0.0);
-                                        lb2 += e * e;
-                                    }
-                                    if (lb2 >= U2) { ++s.boundTests; continue; }
-                                    // plane distance to the sub-block (box half-extent 0.5)
-                                    const double pc = t.n.dot(blo + Vec3d(0.5)) - t.offset;
-                                    const double pr = 0.5 * (std::abs(t.n[0]) + std::abs(t.n[1]) + std::abs(t.n[2]));
-                                    const double pd = std::abs(pc) - pr;
-                                    if (pd > 0.0) lb2 = std::max(lb2, pd * pd);
-                                    if (lb2 >= U2) { ++s.boundTests; continue; }
-                                    cands.push_back(Cand{lb2, lt});
-                                }
-                            }
-                        }
-                    }
-                }
-                const int nc = int(cands.size());
-                std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) {
-                    return x.lb2 < y.lb2 || (x.lb2 == y.lb2 && x.lt < y.lt);
-                });
-
-                // 3. per voxel
-                for (int v = 0; v < nv; ++v) {
-                    const Vec3d& p = P[v];
-                    double b2 = best2[v];
-                    for (int k = 0; k < nc; ++k) {
-                        if (cands[k].lb2 >= b2) break;
-                        const PreparedTri& t = s.tris[cands[k].lt];
-                        const double pd = t.n.dot(p) - t.offset;
-                        if (pd * pd >= b2 || boxDistanceSqr(p, t.lo, t.hi) >= b2) { ++s.boundTests; continue; }
-                        ++s.evaluations;
-                        const TriangleClosestPoint cp = closestPointOnTriangle(p, t.a, t.b, t.c);
-                        if (cp.distanceSqr < b2) { b2 = cp.distanceSqr; bestT[v] = cands[k].lt; bestCp[v] = cp; }
-                    }
-                    best2[v] = b2;
-                    const int vx = vox[v][0], vy = vox[v][1], vz = vox[v][2];
-                    const int cx = vx + R, cy = vy + R, cz = vz + R;
-                    ++s.candidateVoxels;
-                    if (bitAt(cx, cy, cz) || bitAt(cx - 1, cy, cz) || bitAt(cx + 1, cy, cz) ||
-                        bitAt(cx, cy - 1, cz) || bitAt(cx, cy + 1, cz) || bitAt(cx, cy, cz - 1) ||
-                        bitAt(cx, cy, cz + 1))
-                        ++s.localCells;
-                    if (bestT[v] == kNone) continue; // nothing within reach: sign left to the flood fill
-                    seed = bestT[v];
-                    const openvdb::Index offset = openvdb::Index((vx << 6) | (vy << 3) | vz);
-                    const double d = std::sqrt(b2);
-                    const Vec3d& n = ctx.normals.normal(s.tris[bestT[v]].id, bestCp[v].feature);
-                    const bool inside = (p - bestCp[v].point).dot(n) < 0.0;
-                    if (inside ? d < ctx.intW : d < ctx.extW) {
-                        out->setValueOn(offset, float((inside ? -d : d) * ctx.voxelSize));
-                        ++active;
-                    } else {
-                        out->setValueOff(offset, inside ? -bg : bg);
-                    }
+                seed = bestT;
+                if (bestT == kNone) continue; // nothing within reach: sign left to the flood fill
+                const openvdb::Index offset = openvdb::Index((vx << 6) | (vy << 3) | vz);
+                const double d = std::sqrt(best2);
+                const Vec3d& n = ctx.normals.normal(s.tris[bestT].id, bestCp.feature);
+                const bool inside = (p - bestCp.point).dot(n) < 0.0;
+                if (inside ? d < ctx.intW : d < ctx.extW) {
+                    out->setValueOn(offset, float((inside ? -d : d) * ctx.voxelSize));
+                    ++active;
+                } else {
+                    out->setValueOff(offset, inside ? -bg : bg);
                 }
             }
         }

@@ -50,6 +50,16 @@ bool overlap3D(const Vec3d& v0, const Vec3d& v1, const Vec3d& v2, const Vec3d& h
         }
     }
     const Vec3d e[3] = {v1 - v0, v2 - v1, v0 - v2};
+    // Triangle plane first: the cheapest and most often separating axis.
+    {
+        const Vec3d n = e[0].cross(e[1]);
+        const double len2 = n.lengthSqr();
+        if (len2 > 0.0) {
+            const double d = n.dot(v0);
+            const double r = h[0] * std::abs(n[0]) + h[1] * std::abs(n[1]) + h[2] * std::abs(n[2]);
+            if (separated(d, d, r, tol * std::sqrt(len2))) return false;
+        }
+    }
     // 9 cross-product axes: unit axis i × edge j.
     for (int j = 0; j < 3; ++j) {
         for (int i = 0; i < 3; ++i) {
@@ -66,14 +76,6 @@ bool overlap3D(const Vec3d& v0, const Vec3d& v1, const Vec3d& v2, const Vec3d& h
             if (separated(lo, hi, r, tol * std::sqrt(len2))) return false;
         }
     }
-    // Triangle plane.
-    const Vec3d n = e[0].cross(e[1]);
-    const double len2 = n.lengthSqr();
-    if (len2 > 0.0) {
-        const double d = n.dot(v0);
-        const double r = h[0] * std::abs(n[0]) + h[1] * std::abs(n[1]) + h[2] * std::abs(n[2]);
-        if (separated(d, d, r, tol * std::sqrt(len2))) return false;
-    }
     return true;
 }
 
@@ -82,10 +84,69 @@ inline openvdb::math::Coord cellOf(const Vec3d& p)
     return openvdb::math::Coord(int(std::floor(p[0])), int(std::floor(p[1])), int(std::floor(p[2])));
 }
 
+/// Cells already reported for the current triangle: open addressing with generation stamps,
+/// so nothing is cleared between triangles and a cell is tested at most once (the paper's
+/// "some of the cells may have been marked already while processing adjacent microtriangles").
+struct CellSet
+{
+    std::vector<openvdb::math::Coord> key;
+    std::vector<uint32_t> stamp;
+    uint32_t gen = 0, count = 0, mask = 0;
+
+    void reset(size_t expected)
+    {
+        size_t cap = 64;
+        while (cap < 2 * expected) cap <<= 1;
+        if (key.size() < cap) {
+            key.assign(cap, openvdb::math::Coord());
+            stamp.assign(cap, 0u);
+            gen = 0;
+        }
+        mask = uint32_t(cap - 1);
+        count = 0;
+        if (++gen == 0) { std::fill(stamp.begin(), stamp.end(), 0u); gen = 1; }
+    }
+    static uint32_t hash(const openvdb::math::Coord& c)
+    {
+        return uint32_t(c.x()) * 73856093u ^ uint32_t(c.y()) * 19349663u ^ uint32_t(c.z()) * 83492791u;
+    }
+    bool contains(const openvdb::math::Coord& c) const
+    {
+        for (uint32_t h = hash(c) & mask;; h = (h + 1) & mask) {
+            if (stamp[h] != gen) return false;
+            if (key[h] == c) return true;
+        }
+    }
+    /// Inserts c; returns true if it was new. Grows when half full.
+    bool insert(const openvdb::math::Coord& c)
+    {
+        if (2 * (count + 1) > mask + 1) grow();
+        for (uint32_t h = hash(c) & mask;; h = (h + 1) & mask) {
+            if (stamp[h] != gen) { stamp[h] = gen; key[h] = c; ++count; return true; }
+            if (key[h] == c) return false;
+        }
+    }
+    void grow()
+    {
+        std::vector<openvdb::math::Coord> old;
+        old.reserve(count);
+        for (size_t i = 0; i <= mask; ++i)
+            if (stamp[i] == gen) old.push_back(key[i]);
+        const size_t cap = 2 * (size_t(mask) + 1);
+        key.assign(cap, openvdb::math::Coord());
+        stamp.assign(cap, 0u);
+        gen = 1;
+        mask = uint32_t(cap - 1);
+        count = 0;
+        for (const auto& c : old) insert(c);
+    }
+};
+
 struct Scratch
 {
-    std::vector<Vec3d> rowA, rowB;
-    std::vector<openvdb::math::Coord> cellA, cellB;
+    std::vector<Vec3d> lattice;
+    std::vector<openvdb::math::Coord> latticeCell;
+    CellSet set;
 };
 
 } // namespace voxelizer_internal
@@ -103,7 +164,6 @@ void voxelizeTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c,
     using openvdb::math::Coord;
     thread_local Scratch s;
     VoxelizerCounters local;
-    const size_t first = cells.size();
 
     const Vec3d ab = b - a, ac = c - a, bc = c - b;
     auto infNorm = [](const Vec3d& v) { return std::max({std::abs(v[0]), std::abs(v[1]), std::abs(v[2])}); };
@@ -111,24 +171,36 @@ void voxelizeTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c,
     const int n = dT > 1.0 ? int(std::ceil(dT)) : 1;
     const double inv = 1.0 / double(n);
 
-    auto latticeRow = [&](int j, std::vector<Vec3d>& pts, std::vector<Coord>& cs) {
-        const int m = n - j;
-        pts.resize(size_t(m) + 1);
-        cs.resize(size_t(m) + 1);
-        for (int i = 0; i <= m; ++i) {
-            // Same formula for every lattice point, so shared vertices are bit-identical.
-            const Vec3d p = (i == 0 && j == 0) ? a
-                          : (i == n)           ? b
-                          : (j == n)           ? c
-                          : a + ab * (double(i) * inv) + ac * (double(j) * inv);
-            pts[i] = p;
-            cs[i] = cellOf(p);
-            cells.push_back(cs[i]); // vertex scan
+    // Lattice P(i, j) = a + (i/n) ab + (j/n) ac, i + j <= n, stored row by row (row j has n-j+1
+    // points). The same formula for every point makes shared vertices bit-identical.
+    const size_t nPts = size_t(n + 1) * size_t(n + 2) / 2;
+    s.lattice.resize(nPts);
+    s.latticeCell.resize(nPts);
+    s.set.reset(nPts + 8);
+    thread_local std::vector<size_t> rows;
+    rows.resize(size_t(n) + 2);
+    {
+        size_t k = 0;
+        for (int j = 0; j <= n; ++j) {
+            rows[j] = k;
+            for (int i = 0; i <= n - j; ++i, ++k) {
+                const Vec3d p = (i == 0 && j == 0) ? a
+                              : (i == n)           ? b
+                              : (j == n)           ? c
+                              : a + ab * (double(i) * inv) + ac * (double(j) * inv);
+                s.lattice[k] = p;
+                s.latticeCell[k] = cellOf(p);
+                // vertex scan: every lattice point's cell holds the triangle
+                if (s.set.insert(s.latticeCell[k])) cells.push_back(s.latticeCell[k]);
+            }
         }
-    };
+        rows[n + 1] = k;
+    }
+    auto at = [&](int i, int j) { return rows[j] + size_t(i); };
 
-    auto process = [&](const Vec3d& p0, const Coord& c0, const Vec3d& p1, const Coord& c1,
-                       const Vec3d& p2, const Coord& c2, bool white) {
+    auto process = [&](size_t k0, size_t k1, size_t k2, bool white) {
+        const Vec3d &p0 = s.lattice[k0], &p1 = s.lattice[k1], &p2 = s.lattice[k2];
+        const Coord &c0 = s.latticeCell[k0], &c1 = s.latticeCell[k1], &c2 = s.latticeCell[k2];
         ++local.microtriangles;
         int same[3];
         for (int k = 0; k < 3; ++k) same[k] = (c0[k] == c1[k] && c1[k] == c2[k]) ? 1 : 0;
@@ -137,7 +209,6 @@ void voxelizeTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c,
         if (I >= 2) return;
         const Coord lo(std::min({c0[0], c1[0], c2[0]}), std::min({c0[1], c1[1], c2[1]}),
                        std::min({c0[2], c1[2], c2[2]}));
-        auto isVertexCell = [&](const Coord& q) { return q == c0 || q == c1 || q == c2; };
         if (I == 1) {
             if (!white) return; // its edges were covered by white microtriangles (§3.3)
             const int w = same[0] ? 0 : (same[1] ? 1 : 2);
@@ -147,12 +218,12 @@ void voxelizeTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c,
                     Coord q = lo;
                     q[u] += du;
                     q[v] += dv;
-                    if (isVertexCell(q)) continue;
+                    if (s.set.contains(q)) continue; // a vertex cell, or found already
                     const double cu = q[u] + 0.5, cv = q[v] + 0.5;
                     const double qq[3][2] = {{p0[u] - cu, p0[v] - cv}, {p1[u] - cu, p1[v] - cv},
                                              {p2[u] - cu, p2[v] - cv}};
                     ++local.boxTests;
-                    if (overlap2D(qq, kTolerance)) cells.push_back(q);
+                    if (overlap2D(qq, kTolerance)) { s.set.insert(q); cells.push_back(q); }
                 }
             }
             return;
@@ -163,44 +234,22 @@ void voxelizeTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c,
             for (int dy = 0; dy < 2; ++dy)
                 for (int dx = 0; dx < 2; ++dx) {
                     const Coord q = lo.offsetBy(dx, dy, dz);
-                    if (isVertexCell(q)) continue;
+                    if (s.set.contains(q)) continue;
                     const Vec3d ctr(q[0] + 0.5, q[1] + 0.5, q[2] + 0.5);
                     ++local.boxTests;
-                    if (overlap3D(p0 - ctr, p1 - ctr, p2 - ctr, half, kTolerance, false))
+                    if (overlap3D(p0 - ctr, p1 - ctr, p2 - ctr, half, kTolerance, false)) {
+                        s.set.insert(q);
                         cells.push_back(q);
+                    }
                 }
     };
 
-    if (n == 1) {
-        const Coord ca = cellOf(a), cb = cellOf(b), cc = cellOf(c);
-        cells.push_back(ca);
-        cells.push_back(cb);
-        cells.push_back(cc);
-        process(a, ca, b, cb, c, cc, true);
-    } else {
-        // Row j holds lattice points P(i, j) = a + (i/n) ab + (j/n) ac, i = 0..n-j.
-        latticeRow(0, s.rowA, s.cellA);
-        // White pass and black pass interleaved per row pair; the order does not change the
-        // result (the black ones skip case 3 either way).
-        for (int j = 0; j < n; ++j) {
-            latticeRow(j + 1, s.rowB, s.cellB);
-            const int m = n - j; // row j has m+1 points, row j+1 has m points
-            for (int i = 0; i < m; ++i) {
-                // white: (i,j), (i+1,j), (i,j+1)
-                process(s.rowA[i], s.cellA[i], s.rowA[i + 1], s.cellA[i + 1], s.rowB[i], s.cellB[i], true);
-                if (i + 1 < m) {
-                    // black: (i+1,j), (i+1,j+1), (i,j+1)
-                    process(s.rowA[i + 1], s.cellA[i + 1], s.rowB[i + 1], s.cellB[i + 1], s.rowB[i],
-                            s.cellB[i], false);
-                }
-            }
-            std::swap(s.rowA, s.rowB);
-            std::swap(s.cellA, s.cellB);
-        }
-    }
+    // White microtriangles first, then black ones (which only need case 4), as in §3.3.
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n - j; ++i) process(at(i, j), at(i + 1, j), at(i, j + 1), true);
+    for (int j = 0; j + 1 < n; ++j)
+        for (int i = 0; i + 1 < n - j; ++i) process(at(i + 1, j), at(i + 1, j + 1), at(i, j + 1), false);
 
-    std::sort(cells.begin() + first, cells.end());
-    cells.erase(std::unique(cells.begin() + first, cells.end()), cells.end());
     if (counters) counters->add(local);
 }
 

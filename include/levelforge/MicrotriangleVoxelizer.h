@@ -42,8 +42,9 @@ struct VoxelizerCounters
     }
 };
 
-/// Appends the cells (cell space) overlapped by triangle (a, b, c) to `cells`, sorted and
-/// without duplicates among the appended ones. `counters` may be null.
+/// Appends the cells (cell space) overlapped by triangle (a, b, c) to `cells`, each once, in
+/// a deterministic order (vertex scan, then cells found by the case 3/4 tests). A cell already
+/// found is never tested again. `counters` may be null.
 void voxelizeTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c,
                       std::vector<openvdb::math::Coord>& cells, VoxelizerCounters* counters = nullptr);
 
