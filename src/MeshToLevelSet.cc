@@ -17,6 +17,7 @@
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
+#include <cstring>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -73,11 +74,10 @@ struct Scratch
 {
     std::vector<Cand> cands;
     std::vector<uint64_t> bits;       // boundary-cell bit rows (along z) of the gathered region
-    std::vector<uint64_t> dil;        // bits dilated along z by k = 0..R: (R+1) × rows × words
     std::vector<uint32_t> cellStart;  // per region cell: first entry in localList
     std::vector<uint32_t> cellCount;  // per region cell: list length
     std::vector<uint32_t> cellOrd;    // per gathered cell (temporary): global ordinal
-    std::vector<uint32_t> cellIdx;    // per gathered cell (temporary): region index
+    std::vector<uint8_t> zwin;        // z-windows of the dilated rows, per dilation k
     std::vector<uint32_t> localList;  // lists with leaf-local triangle ids
     std::vector<PreparedTri> tris;
     std::vector<float> soa, lb2;  // lower-bound planes (16 SoA arrays) and per-voxel bounds
@@ -100,6 +100,16 @@ struct Context
     std::vector<RowOffset> rows;
     float background;
 };
+
+/// The 8 bits of a multi-word bit row starting at bit `pos` (bits past the end read as 0).
+inline uint32_t bits8Helper(const uint64_t* row, int pos, int words)
+{
+    const int w = pos >> 6, sh = pos & 63;
+    if (w >= words) return 0u;
+    uint64_t v = row[w] >> sh;
+    if (sh > 56 && w + 1 < words) v |= row[w + 1] << (64 - sh);
+    return uint32_t(v & 0xffu);
+}
 
 /// lb2[i] = plane_i(p)² + max(0, edge lines_i(p))² for the SoA bound planes F[0..15];
 /// n is a multiple of 8. Appends to surv the indices with lb2 < bm2 and returns their count. SSE2 on x86-64 (4 triangles per instruction), scalar elsewhere.
@@ -151,7 +161,6 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
     s.bits.assign(nRows * W, 0ull);
     if (s.cellStart.size() < nRegion) { s.cellStart.resize(nRegion); s.cellCount.resize(nRegion); }
     s.cellOrd.clear();
-    s.cellIdx.clear();
     uint64_t entries = 0;
     const auto& tree = ctx.lists.tree();
     for (int lx = rmin.x() & ~7; lx <= rmax.x(); lx += 8)
@@ -178,7 +187,6 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
                             s.bits[row * W + (rz >> 6)] |= (1ull << (rz & 63));
                             const uint32_t ord = leaf->getValue(openvdb::Index(((x - lx) << 6) | ((y - ly) << 3) | bz));
                             s.cellOrd.push_back(ord);
-                            s.cellIdx.push_back(uint32_t(row * D + rz));
                             entries += ctx.lists.listSize(ord);
                         }
                     }
@@ -187,40 +195,38 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
     if (s.cellOrd.empty()) return nullptr;
 
     // ---- reach mask: voxels with at least one boundary cell closer than the band limit.
-    // Rows dilated along z by k (k = 0..R), then OR-ed over the (dx, dy) row offsets.
-    s.dil.resize(size_t(R + 1) * nRows * W);
-    std::copy(s.bits.begin(), s.bits.end(), s.dil.begin());
-    for (int k = 1; k <= R; ++k) { // dilate the previous level by one cell along z
-        const uint64_t* prev = &s.dil[size_t(k - 1) * nRows * W];
-        uint64_t* cur = &s.dil[size_t(k) * nRows * W];
-        for (size_t r = 0; r < nRows; ++r) {
-            const uint64_t* b = &prev[r * W];
-            for (int w = 0; w < W; ++w) {
-                uint64_t v = b[w] | (b[w] << 1) | (b[w] >> 1);
-                if (w > 0) v |= b[w - 1] >> 63;
-                if (w + 1 < W) v |= b[w + 1] << 63;
-                cur[r * W + w] = v;
-            }
+    // zwin[k][row] = the 8 bits of the leaf's z-range (region z = R..R+7) of the row dilated
+    // along z by k cells; a voxel is within reach if, for some row offset (dx, dy) with its
+    // largest admissible dz = reachZ, zwin[reachZ][row(x+dx, y+dy)] has its bit set. Rows are
+    // laid out x-major, so for fixed x the 8 y-neighbours are 8 consecutive bytes: one 64-bit
+    // load covers a whole (vx, ·) line of the leaf.
+    auto bits8 = [&](const uint64_t* row, int pos) -> uint32_t { // 8 bits starting at pos (may be < 0)
+        if (pos < 0) { return pos <= -8 ? 0u : uint32_t(bits8Helper(row, 0, W) << (-pos)) & 0xffu; }
+        return bits8Helper(row, pos, W);
+    };
+    s.zwin.assign(size_t(R + 1) * nRows + 8, 0u);
+    for (size_t r = 0; r < nRows; ++r) {
+        const uint64_t* row = &s.bits[r * W];
+        uint32_t acc = bits8(row, R);
+        s.zwin[r] = uint8_t(acc);
+        for (int k = 1; k <= R; ++k) {
+            acc |= bits8(row, R + k) | bits8(row, R - k);
+            s.zwin[size_t(k) * nRows + r] = uint8_t(acc);
         }
     }
-    uint8_t reach[64]; // per (vx, vy): bit vz set when the voxel is within reach
-    bool anyReach = false;
-    for (int vx = 0; vx < 8; ++vx)
-        for (int vy = 0; vy < 8; ++vy) {
-            uint64_t acc = 0;
-            const int cx = vx + R, cy = vy + R;
-            for (const RowOffset& ro : ctx.rows) {
-                const uint64_t* d = &s.dil[(size_t(ro.reachZ) * nRows + rowIndex(cx + ro.dx, cy + ro.dy)) * W];
-                // bits R..R+7 of the row: voxel vz's own cell is at z = vz + R
-                const int w0 = R >> 6, sh = R & 63;
-                uint64_t v = d[w0] >> sh;
-                if (sh && w0 + 1 < W) v |= d[w0 + 1] << (64 - sh);
-                acc |= v & 0xffull;
-                if (acc == 0xffull) break;
-            }
-            reach[vx * 8 + vy] = uint8_t(acc);
-            anyReach |= acc != 0;
+    uint8_t reach[64]; // [vx * 8 + vy]: bit vz set when the voxel is within reach
+    uint64_t any = 0;
+    for (int vx = 0; vx < 8; ++vx) {
+        uint64_t line = 0; // byte vy = reach bits of (vx, vy, ·)
+        for (const RowOffset& ro : ctx.rows) {
+            uint64_t w;
+            std::memcpy(&w, &s.zwin[size_t(ro.reachZ) * nRows + rowIndex(vx + R + ro.dx, R + ro.dy)], 8);
+            line |= w;
         }
+        std::memcpy(&reach[vx * 8], &line, 8);
+        any |= line;
+    }
+    const bool anyReach = any != 0;
     if (!anyReach) return nullptr;
 
     // ---- the leaf's triangle set T: every triangle listed in a boundary cell of the region.

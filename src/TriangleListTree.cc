@@ -7,7 +7,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_reduce.h>
+#include <tbb/enumerable_thread_specific.h>
 
 #include <algorithm>
 #include <atomic>
@@ -20,58 +20,33 @@ namespace trianglelist_internal {
 using TreeT = TriangleListTree::TreeType;
 using LeafT = TreeT::LeafNodeType;
 
-/// Pass 1 body: counts triangles per cell in a private tree; joins by merging leaves.
-struct CountBody
+/// Triangles are voxelized in fixed chunks; each chunk keeps the cells it found (one buffer per
+/// chunk, no per-cell allocation) so that pass 2 scatters without voxelizing again.
+constexpr size_t kChunk = 256;
+
+struct Chunk
 {
-    const std::vector<Vec3d>& pts;
-    const std::vector<Vec3I>& tris;
-    const std::vector<uint32_t>& use;
-    std::atomic<bool>& stop;
-    openvdb::util::NullInterrupter* interrupter;
-    TreeT::Ptr tree;
-    VoxelizerCounters counters;
-    std::vector<openvdb::Coord> cells;
-
-    CountBody(const std::vector<Vec3d>& p, const std::vector<Vec3I>& t, const std::vector<uint32_t>& u,
-              std::atomic<bool>& s, openvdb::util::NullInterrupter* i)
-        : pts(p), tris(t), use(u), stop(s), interrupter(i), tree(new TreeT(0u)) {}
-    CountBody(CountBody& o, tbb::split)
-        : pts(o.pts), tris(o.tris), use(o.use), stop(o.stop), interrupter(o.interrupter), tree(new TreeT(0u)) {}
-
-    void operator()(const tbb::blocked_range<size_t>& r)
-    {
-        if (stop.load(std::memory_order_relaxed)) return;
-        if (interrupter && interrupter->wasInterrupted(int(10 * r.begin() / std::max<size_t>(1, use.size())))) {
-            stop = true;
-            return;
-        }
-        openvdb::tree::ValueAccessor<TreeT> acc(*tree);
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            const Vec3I& t = tris[use[i]];
-            cells.clear();
-            voxelizeTriangle(pts[t[0]], pts[t[1]], pts[t[2]], cells, &counters);
-            for (const openvdb::Coord& c : cells) acc.modifyValue(c, [](uint32_t& v) { ++v; });
-        }
-    }
-
-    void join(CountBody& o)
-    {
-        counters.add(o.counters);
-        std::vector<LeafT*> leaves;
-        o.tree->stealNodes(leaves);
-        for (LeafT* leaf : leaves) {
-            if (LeafT* mine = tree->probeLeaf(leaf->origin())) {
-                for (auto it = leaf->cbeginValueOn(); it; ++it) {
-                    const openvdb::Index n = it.pos();
-                    mine->setValueOn(n, mine->getValue(n) + *it);
-                }
-                delete leaf;
-            } else {
-                tree->addLeaf(leaf);
-            }
-        }
-    }
+    std::vector<openvdb::Coord> cells; // cells of the chunk's triangles, triangle after triangle
+    std::vector<uint32_t> count;       // number of cells of each triangle of the chunk
 };
+
+/// Merges `src`'s counts into `dst` (leaves are moved when `dst` has none at that origin).
+void mergeCounts(TreeT& dst, TreeT& src)
+{
+    std::vector<LeafT*> leaves;
+    src.stealNodes(leaves);
+    for (LeafT* leaf : leaves) {
+        if (LeafT* mine = dst.probeLeaf(leaf->origin())) {
+            for (auto it = leaf->cbeginValueOn(); it; ++it) {
+                const openvdb::Index n = it.pos();
+                mine->setValueOn(n, mine->getValue(n) + *it);
+            }
+            delete leaf;
+        } else {
+            dst.addLeaf(leaf);
+        }
+    }
+}
 
 } // namespace trianglelist_internal
 
@@ -83,15 +58,45 @@ TriangleListTree TriangleListTree::build(const std::vector<Vec3d>& cellPoints,
 {
     using namespace trianglelist_internal;
     std::atomic<bool> stop{false};
+    const size_t nChunks = (use.size() + kChunk - 1) / kChunk;
+    std::vector<Chunk> chunks(nChunks);
 
-    // Pass 1: topology + counts.
-    CountBody body(cellPoints, triangles, use, stop, interrupter);
-    tbb::parallel_reduce(tbb::blocked_range<size_t>(0, use.size(), 512), body);
+    // Pass 1: voxelize, keep each chunk's cells, count triangles per cell in per-thread trees.
+    struct Local
+    {
+        TreeT::Ptr tree{new TreeT(0u)};
+        VoxelizerCounters counters;
+    };
+    tbb::enumerable_thread_specific<Local> locals;
+    std::atomic<size_t> done{0};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nChunks, 1), [&](const tbb::blocked_range<size_t>& r) {
+        if (stop.load(std::memory_order_relaxed)) return;
+        Local& local = locals.local();
+        openvdb::tree::ValueAccessor<TreeT> acc(*local.tree);
+        for (size_t c = r.begin(); c != r.end(); ++c) {
+            Chunk& chunk = chunks[c];
+            const size_t first = c * kChunk, last = std::min(use.size(), first + kChunk);
+            chunk.count.resize(last - first);
+            for (size_t i = first; i < last; ++i) {
+                const Vec3I& t = triangles[use[i]];
+                const size_t before = chunk.cells.size();
+                voxelizeTriangle(cellPoints[t[0]], cellPoints[t[1]], cellPoints[t[2]], chunk.cells, &local.counters);
+                chunk.count[i - first] = uint32_t(chunk.cells.size() - before);
+                for (size_t k = before; k < chunk.cells.size(); ++k) acc.modifyValue(chunk.cells[k], [](uint32_t& v) { ++v; });
+            }
+            chunk.cells.shrink_to_fit();
+        }
+        const size_t d = done.fetch_add(r.size()) + r.size();
+        if (interrupter && interrupter->wasInterrupted(int(15 * d / std::max<size_t>(1, nChunks)))) stop = true;
+    });
     if (stop) throw InterruptedError("interrupted while voxelizing triangles");
-    if (counters) counters->add(body.counters);
 
     TriangleListTree result;
-    result.mTree = body.tree;
+    result.mTree.reset(new TreeT(0u));
+    for (Local& local : locals) { // merge order does not change the sums
+        mergeCounts(*result.mTree, *local.tree);
+        if (counters) counters->add(local.counters);
+    }
     TreeT& tree = *result.mTree;
 
     // Number the cells in leaf order; prefix sums give each list's first slot.
@@ -129,29 +134,26 @@ TriangleListTree TriangleListTree::build(const std::vector<Vec3d>& cellPoints,
         }
     });
 
-    // Pass 2: fill. Atomic cursors per cell; the order inside a list is fixed afterwards.
+    // Pass 2: fill from the kept cells. Atomic cursors per cell; each list is sorted afterwards
+    // so the result does not depend on the thread schedule.
     std::unique_ptr<std::atomic<uint32_t>[]> cursor(new std::atomic<uint32_t>[nCells]());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, use.size(), 512), [&](const tbb::blocked_range<size_t>& r) {
-        if (stop.load(std::memory_order_relaxed)) return;
-        if (interrupter && interrupter->wasInterrupted(int(10 + 10 * r.begin() / std::max<size_t>(1, use.size())))) {
-            stop = true;
-            return;
-        }
-        thread_local std::vector<openvdb::Coord> cells;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nChunks, 1), [&](const tbb::blocked_range<size_t>& r) {
         openvdb::tree::ValueAccessor<const TreeT> acc(tree);
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            const uint32_t id = use[i];
-            const Vec3I& t = triangles[id];
-            cells.clear();
-            voxelizeTriangle(cellPoints[t[0]], cellPoints[t[1]], cellPoints[t[2]], cells, nullptr);
-            for (const openvdb::Coord& c : cells) {
-                const uint32_t ord = acc.getValue(c);
-                const uint32_t slot = cursor[ord].fetch_add(1, std::memory_order_relaxed);
-                result.mIds[result.mBegin[ord] + slot] = id;
+        for (size_t c = r.begin(); c != r.end(); ++c) {
+            Chunk& chunk = chunks[c];
+            size_t k = 0;
+            for (size_t i = 0; i < chunk.count.size(); ++i) {
+                const uint32_t id = use[c * kChunk + i];
+                for (uint32_t j = 0; j < chunk.count[i]; ++j, ++k) {
+                    const uint32_t ord = acc.getValue(chunk.cells[k]);
+                    const uint32_t slot = cursor[ord].fetch_add(1, std::memory_order_relaxed);
+                    result.mIds[result.mBegin[ord] + slot] = id;
+                }
             }
+            std::vector<openvdb::Coord>().swap(chunk.cells);
         }
     });
-    if (stop) throw InterruptedError("interrupted while building triangle lists");
+    if (interrupter && interrupter->wasInterrupted(19)) throw InterruptedError("interrupted while building triangle lists");
     tbb::parallel_for(tbb::blocked_range<size_t>(0, nCells, 4096), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t o = r.begin(); o != r.end(); ++o)
             std::sort(result.mIds.begin() + result.mBegin[o], result.mIds.begin() + result.mBegin[o + 1]);
