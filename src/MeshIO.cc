@@ -357,6 +357,67 @@ void prescanObj(const std::string& path, Prescan& out)
     out.havePoints = true;
 }
 
+// OFF (binary, OpenMesh's layout: little-endian uint32 counts, float32 coordinates, uint32
+// corner counts and indices). OpenMesh trusts the counts (its face loop does not stop at the end
+// of the file), so they are checked against the data here.
+void prescanBinaryOff(const std::string& path, FileReader& reader, bool extras, Prescan& out)
+{
+    auto readU32 = [&](uint32_t& v) {
+        unsigned char b[4];
+        if (!reader.readBytes(b, 4)) return false;
+        v = uint32_t(b[0]) | (uint32_t(b[1]) << 8) | (uint32_t(b[2]) << 16) | (uint32_t(b[3]) << 24);
+        return true;
+    };
+    uint32_t nV = 0, nF = 0, nE = 0;
+    if (!readU32(nV) || !readU32(nF) || !readU32(nE)) throwInvalid(path, 0, "truncated binary OFF header");
+    if (nV > uint32_t(std::numeric_limits<int>::max()) || nF > uint32_t(std::numeric_limits<int>::max())) {
+        throwInvalid(path, 0, "binary OFF vertex or face count too large");
+    }
+    if (extras) {
+        // Colours / normals / texture coordinates: only make sure the counts are plausible.
+        std::error_code ec;
+        const uint64_t size = fs::file_size(path, ec);
+        if (!ec && size < 12 * uint64_t(nV) + 4 * uint64_t(nF)) {
+            throwInvalid(path, 0, "binary OFF is shorter than its " + std::to_string(nV) +
+                " vertices and " + std::to_string(nF) + " faces");
+        }
+        return;
+    }
+    for (uint32_t v = 0; v < nV; ++v) {
+        for (int k = 0; k < 3; ++k) {
+            uint32_t bits = 0;
+            if (!readU32(bits)) {
+                throwInvalid(path, 0, "the file ends inside vertex " + std::to_string(v) + " of " +
+                    std::to_string(nV));
+            }
+            float x;
+            std::memcpy(&x, &bits, 4);
+            if (!std::isfinite(x)) {
+                throwInvalid(path, 0, "vertex " + std::to_string(v) + ": non-finite coordinate " +
+                    formatDouble(x));
+            }
+        }
+    }
+    for (uint32_t f = 0; f < nF; ++f) {
+        uint32_t corners = 0;
+        if (!readU32(corners)) {
+            throwInvalid(path, 0, "the file ends before face " + std::to_string(f) + " of " +
+                std::to_string(nF));
+        }
+        for (uint32_t c = 0; c < corners; ++c) {
+            uint32_t idx = 0;
+            if (!readU32(idx)) throwInvalid(path, 0, "the file ends inside face " + std::to_string(f));
+            if (idx >= nV) {
+                throwInvalid(path, 0, "face " + std::to_string(f) + ": vertex index " +
+                    std::to_string(idx) + " is out of range (the file has " + std::to_string(nV) +
+                    " vertices, numbered from 0)");
+            }
+        }
+    }
+    out.faces = nF;
+    out.haveFaces = true;
+}
+
 // OFF (ASCII): header counts, then vertices and faces read the way OpenMesh reads them (three
 // numbers then the rest of the line per vertex; a count and that many indices per face).
 void prescanOff(const std::string& path, Prescan& out)
@@ -382,7 +443,8 @@ void prescanOff(const std::string& path, Prescan& out)
     std::string_view extra = trimmed(p);
     if (extra.substr(0, 6) == "BINARY") {
         out.binary = true;
-        return; // binary OFF: the importer checks values and indices
+        prescanBinaryOff(path, reader, hasTex || hasColor || hasNormal || higherDim, out);
+        return;
     }
     if (!extra.empty()) {
         throwInvalid(path, 1, "the OFF header line must hold only the keyword (OpenMesh reads the "
@@ -546,54 +608,74 @@ void prescanPly(const std::string& path, Prescan& out)
     PlyFormat format = PlyFormat::Ascii;
     bool haveFormat = false, ended = false;
     std::vector<PlyElement> elements;
+    // OpenMesh parses the header token by token across lines and loops forever when a line has
+    // a token too few or a non-number where it expects one: check every line exactly.
+    std::string_view t[6];
     while (reader.nextLine(line)) {
         rest = line;
-        if (!nextToken(rest, tok)) continue;
-        if (tok == "end_header") { ended = true; break; }
-        if (tok == "comment" || tok == "obj_info") continue;
-        if (tok == "format") {
-            nextToken(rest, tok);
-            if (tok == "ascii") format = PlyFormat::Ascii;
-            else if (tok == "binary_little_endian") format = PlyFormat::BinaryLE;
-            else if (tok == "binary_big_endian") format = PlyFormat::BinaryBE;
-            else throwInvalid(path, reader.lineNumber(), "unknown PLY format " + quoted(tok));
-            haveFormat = true;
-        } else if (tok == "element") {
-            PlyElement e;
-            std::string_view name, count;
-            if (!nextToken(rest, name) || !nextToken(rest, count) || !parseInteger(count, e.count)) {
-                throwInvalid(path, reader.lineNumber(), "malformed element line " + quoted(trimmed(line)));
+        if (!nextToken(rest, t[0])) continue;
+        if (t[0] == "comment" || t[0] == "obj_info") continue;
+        int n = 1;
+        while (n < 6 && nextToken(rest, t[n])) ++n;
+        if (n == 6 || nextToken(rest, tok)) n = 7; // too many
+        auto malformed = [&](const char* expected) {
+            throwInvalid(path, reader.lineNumber(), "malformed PLY header line " + quoted(trimmed(line)) +
+                ", expected '" + expected + "'");
+        };
+        if (t[0] == "end_header") {
+            if (n != 1) malformed("end_header");
+            ended = true;
+            break;
+        }
+        if (t[0] == "format") {
+            double version = 0;
+            if (n != 3 || parseCoordinate(t[2], version) != NumberStatus::Ok) {
+                malformed("format ascii|binary_little_endian|binary_big_endian 1.0");
             }
-            e.name = std::string(name);
+            if (t[1] == "ascii") format = PlyFormat::Ascii;
+            else if (t[1] == "binary_little_endian") format = PlyFormat::BinaryLE;
+            else if (t[1] == "binary_big_endian") format = PlyFormat::BinaryBE;
+            else throwInvalid(path, reader.lineNumber(), "unknown PLY format " + quoted(t[1]));
+            haveFormat = true;
+        } else if (t[0] == "element") {
+            PlyElement e;
+            if (n != 3 || !parseInteger(t[2], e.count) ||
+                e.count > uint64_t(std::numeric_limits<int>::max())) {
+                malformed("element <name> <count>");
+            }
+            e.name = std::string(t[1]);
             elements.push_back(std::move(e));
-        } else if (tok == "property") {
+        } else if (t[0] == "property") {
             if (elements.empty()) {
                 throwInvalid(path, reader.lineNumber(), "property before any element");
             }
             PlyProperty prop;
-            std::string_view t1, t2, t3, name;
-            if (!nextToken(rest, t1)) throwInvalid(path, reader.lineNumber(), "malformed property line");
-            if (t1 == "list") {
-                if (!nextToken(rest, t2) || !nextToken(rest, t3) || !nextToken(rest, name)) {
-                    throwInvalid(path, reader.lineNumber(), "malformed list property line");
-                }
+            if (n >= 2 && t[1] == "list") {
+                if (n != 5) malformed("property list <count type> <item type> <name>");
                 prop.isList = true;
-                prop.countType = plyType(t2);
-                prop.type = plyType(t3);
-                if (prop.countType == PlyType::Invalid || prop.type == PlyType::Invalid) {
-                    throwInvalid(path, reader.lineNumber(), "unknown PLY type in " + quoted(trimmed(line)));
+                prop.countType = plyType(t[2]);
+                prop.type = plyType(t[3]);
+                prop.name = std::string(t[4]);
+                if (prop.countType == PlyType::Invalid || prop.type == PlyType::Invalid ||
+                    prop.countType == PlyType::Float32 || prop.countType == PlyType::Float64) {
+                    throwInvalid(path, reader.lineNumber(), "unsupported PLY list types in " +
+                        quoted(trimmed(line)));
                 }
             } else {
-                if (!nextToken(rest, name)) throwInvalid(path, reader.lineNumber(), "malformed property line");
-                prop.type = plyType(t1);
+                if (n != 3) malformed("property <type> <name>");
+                prop.type = plyType(t[1]);
+                prop.name = std::string(t[2]);
                 if (prop.type == PlyType::Invalid) {
-                    throwInvalid(path, reader.lineNumber(), "unknown PLY type " + quoted(t1));
+                    throwInvalid(path, reader.lineNumber(), "unknown PLY type " + quoted(t[1]));
                 }
             }
-            prop.name = std::string(name);
             elements.back().props.push_back(std::move(prop));
+        } else {
+            const bool number = std::isdigit(static_cast<unsigned char>(t[0][0])) || t[0][0] == '-' ||
+                                t[0][0] == '.';
+            throwInvalid(path, reader.lineNumber(), "unknown PLY header keyword " + quoted(t[0]) +
+                (number ? " (is 'end_header' missing?)" : ""));
         }
-        // anything else: leave it to OpenMesh
     }
     if (!ended) throwInvalid(path, reader.lineNumber(), "the PLY header has no 'end_header'");
     if (!haveFormat) throwInvalid(path, 0, "the PLY header has no 'format' line");
@@ -817,8 +899,10 @@ public:
     }
     void reserve(unsigned int nV, unsigned int, unsigned int nF) override
     {
-        mPoints.reserve(nV);
-        mFaceStream.reserve(size_t(nF) * 4);
+        // A hint from the file's header: capped, the pre-scan has checked it against the data.
+        constexpr unsigned int kCap = 1u << 26;
+        mPoints.reserve(std::min(nV, kCap));
+        mFaceStream.reserve(size_t(std::min(nF, kCap)) * 4);
     }
     size_t n_vertices() const override { return mPoints.size(); }
     size_t n_faces() const override { return size_t(mFaceCount); }

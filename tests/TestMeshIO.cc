@@ -586,6 +586,55 @@ TEST(MeshIO, BinaryOff)
     expectThrowWith<InvalidMeshError>([&] { readMesh(nan); }, {nan, "vertex 2", "non-finite"});
 }
 
+TEST(MeshIO, MalformedHeadersFailFastInsteadOfHangingOpenMesh)
+{
+    // OpenMesh 9's PLY header parser loops forever on each of these, its binary OFF and binary
+    // STL readers trust the counts in the file: the pre-scan must stop them first.
+    const fs::path dir = scratchDir("meshio_headers");
+    const std::string body = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    const std::string props = "property float x\nproperty float y\nproperty float z\nelement face 1\n"
+                              "property list uchar int vertex_indices\n";
+    struct Case { const char* name; std::string content; std::vector<std::string> parts; };
+    const std::vector<Case> cases = {
+        {"version.ply", "ply\nformat ascii 1.e\nelement vertex 3\n" + props + "end_header\n" + body,
+         {"line 2", "format"}},
+        {"count.ply", "ply\nformat ascii 1.0\nelement vertex abc\n" + props + "end_header\n" + body,
+         {"line 3", "element"}},
+        {"nocount.ply", "ply\nformat ascii 1.0\nelement vertex\n" + props + "end_header\n" + body,
+         {"line 3", "element"}},
+        {"propname.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + props + "property float\nend_header\n" + body,
+         {"line 9", "property"}},
+        {"listtypes.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + props + "property list uchar\nend_header\n" + body,
+         {"line 9", "property list"}},
+        {"keyword.ply", "ply\nformat ascii 1.0\nfoo bar\nelement vertex 3\n" + props + "end_header\n" + body,
+         {"line 3", "keyword 'foo'"}},
+        {"noend.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + props + body, {"end_header"}},
+        {"short.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + props + "end_header\n0 0 0\n1 0 0\n",
+         {"ends inside vertex 2"}},
+    };
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.name);
+        const std::string p = writeFile(dir, c.name, c.content);
+        std::vector<std::string> parts = c.parts;
+        parts.insert(parts.begin(), p);
+        expectThrowWith<InvalidMeshError>([&] { readMesh(p); }, parts);
+    }
+    // Binary OFF announcing four billion faces, binary STL (.stlb) announcing more facets than
+    // it holds.
+    std::string off = "OFF BINARY\n";
+    const uint32_t counts[3] = {3, 4000000000u, 0};
+    appendBytes(off, counts, 12);
+    const float xyz[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    appendBytes(off, xyz, 36);
+    const std::string offPath = writeFile(dir, "huge.off", off);
+    expectThrowWith<InvalidMeshError>([&] { readMesh(offPath); }, {offPath});
+    std::string stl = binaryStl({{0, 0, 0, 1, 0, 0, 0, 1, 0}});
+    const uint32_t lie = 1000000;
+    std::memcpy(&stl[80], &lie, 4);
+    const std::string stlPath = writeFile(dir, "lie.stlb", stl);
+    expectThrowWith<InvalidMeshError>([&] { readMesh(stlPath); }, {stlPath, "ends inside facet 1"});
+}
+
 TEST(MeshIO, FacesWithoutThreeDistinctCornersAreCounted)
 {
     const fs::path dir = scratchDir("meshio_dropped");

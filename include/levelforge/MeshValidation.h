@@ -4,7 +4,7 @@
 //  - fatal (throws InvalidMeshError naming mesh.source and the element): no triangles, a vertex
 //    with a NaN/Inf coordinate, a triangle index out of range;
 //  - counted in MeshReport: degenerate (zero-area) triangles, unused vertices, boundary edges,
-//    non-manifold edges, inconsistently oriented edges, connected components.
+//    non-manifold edges, inconsistently oriented edges, pinched vertices, connected components.
 //
 // Definitions (all counts are exact and independent of the number of threads):
 //  - an edge is an unordered pair of distinct vertex indices used by at least one triangle side;
@@ -22,12 +22,13 @@
 //    sheets of surface touch at a single vertex (e.g. two cones tip to tip). Reported, but not
 //    part of closed(): inside and outside are still well defined;
 //  - closed(): at least one triangle, no boundary, no non-manifold and no inconsistently
-//    oriented edge (a watertight, consistently oriented 2-manifold, possibly with several parts
-//    and possibly self-intersecting: intersections are not looked for).
+//    oriented edge (watertight and consistently oriented along every edge, possibly with several
+//    parts, pinched vertices, or self-intersections: intersections are not looked for).
 //
-// Cost: O(V + T) time and about 8 bytes per half-edge plus 8 per vertex of scratch memory; the
-// edges are bucketed by their smaller vertex (a counting sort), never put in a map. A 1.6 M
-// triangle mesh validates in well under a second. TBB parallelises the edge scan.
+// Cost: O(V + T) time and at most about 24 bytes per triangle plus 14 per vertex of scratch
+// memory; half-edges are bucketed by their smaller vertex (a counting sort) and incident
+// triangles by vertex, never put in a map. A 1.6 M triangle mesh validates in about 0.2 s
+// (two cores). TBB parallelises the per-vertex scans; results do not depend on the thread count.
 #pragma once
 
 #include <levelforge/TriangleMesh.h>
