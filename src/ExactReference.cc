@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace levelforge {
 
@@ -66,36 +67,46 @@ ExactReference::ExactReference(const TriangleMesh& mesh)
 ExactReference::~ExactReference() = default;
 
 namespace reference_internal {
-inline double sign(const PseudoNormals& normals, uint32_t tri, const TriangleClosestPoint& cp, const Vec3d& p)
+/// Running minimum over triangles; ties go to the lowest triangle id (deterministic).
+struct Closest
 {
-    return (p - cp.point).dot(normals.normal(tri, cp.feature)) < 0.0 ? -1.0 : 1.0;
-}
+    const TriangleMesh& mesh;
+    const Vec3d& p;
+    double d2 = std::numeric_limits<double>::infinity();
+    TriangleClosestPoint cp{Vec3d(0.0), 0.0, TriangleFeature::Face};
+    uint32_t tri = ~0u;
+
+    Closest(const TriangleMesh& m, const Vec3d& q) : mesh(m), p(q) {}
+    void consider(uint32_t t)
+    {
+        const Vec3I& v = mesh.triangles[t];
+        const TriangleClosestPoint c = closestPointOnTriangle(p, mesh.points[v[0]], mesh.points[v[1]], mesh.points[v[2]]);
+        if (c.distanceSqr < d2 || (c.distanceSqr == d2 && t < tri)) { d2 = c.distanceSqr; cp = c; tri = t; }
+    }
+    ExactReference::Result result(const PseudoNormals& normals) const
+    {
+        ExactReference::Result r;
+        if (tri == ~0u) return r;
+        r.triangle = tri;
+        r.closestPoint = cp.point;
+        r.distance = std::sqrt(d2) * (normals.isInside(tri, cp, p) ? -1.0 : 1.0);
+        return r;
+    }
+};
 } // namespace reference_internal
 
 ExactReference::Result ExactReference::query(const Vec3d& p) const
 {
-    Result res;
-    if (mNodes.empty()) return res;
-    double best2 = std::numeric_limits<double>::infinity();
-    TriangleClosestPoint bestCp{Vec3d(0.0), 0.0, TriangleFeature::Face};
+    if (mNodes.empty()) return Result();
+    reference_internal::Closest best(mMesh, p);
     uint32_t stack[128];
     int sp = 0;
     stack[sp++] = 0;
     while (sp > 0) {
         const Node& n = mNodes[stack[--sp]];
-        if (boxDistanceSqr(p, n.box.min(), n.box.max()) >= best2) continue;
+        if (boxDistanceSqr(p, n.box.min(), n.box.max()) >= best.d2) continue;
         if (n.count > 0) {
-            for (uint32_t i = n.first; i < n.first + n.count; ++i) {
-                const uint32_t t = mOrder[i];
-                const Vec3I& tri = mMesh.triangles[t];
-                const TriangleClosestPoint cp =
-                    closestPointOnTriangle(p, mMesh.points[tri[0]], mMesh.points[tri[1]], mMesh.points[tri[2]]);
-                if (cp.distanceSqr < best2 || (cp.distanceSqr == best2 && t < res.triangle)) {
-                    best2 = cp.distanceSqr;
-                    bestCp = cp;
-                    res.triangle = t;
-                }
-            }
+            for (uint32_t i = n.first; i < n.first + n.count; ++i) best.consider(mOrder[i]);
             continue;
         }
         const Node& l = mNodes[n.left];
@@ -106,30 +117,14 @@ ExactReference::Result ExactReference::query(const Vec3d& p) const
         if (dl < dr) { stack[sp++] = n.right; stack[sp++] = n.left; }
         else { stack[sp++] = n.left; stack[sp++] = n.right; }
     }
-    res.closestPoint = bestCp.point;
-    res.distance = std::sqrt(best2) * reference_internal::sign(*mNormals, res.triangle, bestCp, p);
-    return res;
+    return best.result(*mNormals);
 }
 
 ExactReference::Result ExactReference::bruteForce(const Vec3d& p) const
 {
-    Result res;
-    double best2 = std::numeric_limits<double>::infinity();
-    TriangleClosestPoint bestCp{Vec3d(0.0), 0.0, TriangleFeature::Face};
-    for (uint32_t t : mOrder) {
-        const Vec3I& tri = mMesh.triangles[t];
-        const TriangleClosestPoint cp =
-            closestPointOnTriangle(p, mMesh.points[tri[0]], mMesh.points[tri[1]], mMesh.points[tri[2]]);
-        if (cp.distanceSqr < best2 || (cp.distanceSqr == best2 && t < res.triangle)) {
-            best2 = cp.distanceSqr;
-            bestCp = cp;
-            res.triangle = t;
-        }
-    }
-    if (res.triangle == ~0u) return res;
-    res.closestPoint = bestCp.point;
-    res.distance = std::sqrt(best2) * reference_internal::sign(*mNormals, res.triangle, bestCp, p);
-    return res;
+    reference_internal::Closest best(mMesh, p);
+    for (uint32_t t : mOrder) best.consider(t);
+    return best.result(*mNormals);
 }
 
 BandErrorReport compareToReference(const openvdb::FloatGrid& grid, const ExactReference& reference,

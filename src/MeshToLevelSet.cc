@@ -350,8 +350,7 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
                 if (bestT == kNone) continue; // nothing within reach: sign left to the flood fill
                 const openvdb::Index offset = openvdb::Index((vx << 6) | (vy << 3) | vz);
                 const double d = std::sqrt(best2);
-                const Vec3d& n = ctx.normals.normal(s.tris[bestT].id, bestCp.feature);
-                const bool inside = (p - bestCp.point).dot(n) < 0.0;
+                const bool inside = ctx.normals.isInside(s.tris[bestT].id, bestCp, p);
                 if (inside ? d < ctx.intW : d < ctx.extW) {
                     out->setValueOn(offset, float((inside ? -d : d) * ctx.voxelSize));
                     ++active;

@@ -32,6 +32,14 @@ public:
     /// The pseudonormal of the given feature of triangle tri.
     const Vec3d& normal(uint32_t tri, TriangleFeature f) const;
     bool isDegenerate(uint32_t tri) const { return mFace[tri].lengthSqr() == 0.0; }
+    /// The sign rule: p is inside when dot(p - c, n) < 0, with c = closest.point on triangle tri
+    /// and n the pseudonormal of closest.feature. `Closest` is a TriangleClosestPoint
+    /// (TriangleDistance.h); any type with `point` and `feature` members works.
+    template<typename Closest>
+    bool isInside(uint32_t tri, const Closest& closest, const Vec3d& p) const
+    {
+        return (p - closest.point).dot(normal(tri, closest.feature)) < 0.0;
+    }
 
 private:
     const TriangleMesh& mMesh;
