@@ -104,7 +104,8 @@ ExactReference::Result ExactReference::query(const Vec3d& p) const
     stack[sp++] = 0;
     while (sp > 0) {
         const Node& n = mNodes[stack[--sp]];
-        if (boxDistanceSqr(p, n.box.min(), n.box.max()) >= best.d2) continue;
+        // Strict: a box at exactly the best distance may hold a lower-id tie (same answer as bruteForce).
+        if (boxDistanceSqr(p, n.box.min(), n.box.max()) > best.d2) continue;
         if (n.count > 0) {
             for (uint32_t i = n.first; i < n.first + n.count; ++i) best.consider(mOrder[i]);
             continue;

@@ -4,15 +4,18 @@
 #include "Operator.h"
 
 #include <levelforge/Exceptions.h>
+#include <levelforge/FastSweeping.h>
 #include <levelforge/MeshIO.h>
 #include <levelforge/MeshShapes.h>
 #include <levelforge/MeshToLevelSet.h>
 #include <levelforge/MeshValidation.h>
+#include <levelforge/TetScanConversion.h> // --method scan (issue 5)
 #include <levelforge/Progress.h>
 #include <levelforge/VdbIO.h>
 
 #include <openvdb/openvdb.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <ostream>
@@ -81,6 +84,38 @@ void printStats(std::ostream& os, const MeshToLevelSetStats& s)
        << ", finish " << fmt("%.3f", s.secondsFinish) << "\n";
 }
 
+// ---- --method scan (issue 5: T4 scan conversion, TetScanConversion.h)
+TetScanOptions scanOptionsFrom(const MeshToLevelSetOptions& o, const std::string& shell)
+{
+    TetScanOptions s;
+    s.voxelSize = o.voxelSize;
+    s.voxelCount = o.voxelCount;
+    s.exteriorWidth = o.exteriorWidth;
+    s.interiorWidth = o.interiorWidth;
+    s.gridName = o.gridName;
+    s.interrupter = o.interrupter;
+    s.shell = shellMethodFromString(shell);
+    return s;
+}
+
+void printScanStats(std::ostream& os, const TetScanStats& s)
+{
+    os << "statistics (scan conversion, shell " << toString(s.shell) << "):\n"
+       << "  triangles used:          " << withThousands(s.triangles) << " ("
+       << withThousands(s.skippedDegenerate) << " degenerate skipped)\n"
+       << "  tetrahedra:              " << withThousands(s.tetrahedra) << " ("
+       << fmt("%.2f", s.tetrahedraPerFace()) << " per face)\n"
+       << "  cross-sections:          " << withThousands(s.crossSections) << "\n"
+       << "  slabs / slab items:      " << withThousands(s.slabs) << " / " << withThousands(s.slabItems) << "\n"
+       << "  voxels rasterized:       " << withThousands(s.voxelsRasterized) << " ("
+       << fmt("%.2f", s.overlapFactor()) << " per active voxel)\n"
+       << "  active voxels:           " << withThousands(s.activeVoxels) << "\n"
+       << "  seconds: shell " << fmt("%.3f", s.secondsShell) << ", sort " << fmt("%.3f", s.secondsSort)
+       << ", sweep " << fmt("%.3f", s.secondsSweep) << ", fill " << fmt("%.3f", s.secondsFill)
+       << ", finish " << fmt("%.3f", s.secondsFinish) << "\n";
+}
+// ---- end --method scan
+
 void cookMeshToSdf(OperatorArgs& args)
 {
     using Clock = std::chrono::steady_clock;
@@ -128,13 +163,39 @@ void cookMeshToSdf(OperatorArgs& args)
     CliProgress progress(10, !quiet);
     options.interrupter = &progress;
 
+    // --expansion sweep: exact band of --exact-band voxels, then fast sweeping to the full band.
+    const bool sweep = args.getString("expansion") == "sweep";
+    const float exteriorTarget = options.exteriorWidth, interiorTarget = options.interiorWidth;
+    if (sweep) {
+        const float exact = static_cast<float>(args.getFloat("exact-band"));
+        options.exteriorWidth = std::min(options.exteriorWidth, exact);
+        options.interiorWidth = std::min(options.interiorWidth, exact);
+    }
+
     MeshToLevelSetStats stats;
     const auto t1 = Clock::now();
-    openvdb::FloatGrid::Ptr grid = meshToLevelSet(mesh, options, &stats);
+    const bool scan = args.getString("method") == "scan"; // issue 5
+    TetScanStats scanStats;
+    openvdb::FloatGrid::Ptr grid = scan ? meshToLevelSetScan(mesh, scanOptionsFrom(options, args.getString("shell")), &scanStats)
+                                        : meshToLevelSet(mesh, options, &stats);
+    if (sweep) {
+        ExpandLevelSetOptions expand;
+        expand.exteriorWidth = exteriorTarget;
+        expand.interiorWidth = interiorTarget;
+        expand.inputExteriorWidth = options.exteriorWidth;
+        expand.inputInteriorWidth = options.interiorWidth;
+        expand.interrupter = &progress;
+        grid = expandLevelSet(*grid, expand);
+        options.exteriorWidth = exteriorTarget;
+        options.interiorWidth = interiorTarget;
+    }
     const double convertSeconds = std::chrono::duration<double>(Clock::now() - t1).count();
 
     stampLevelSetMetadata(*grid, options.exteriorWidth, options.interiorWidth,
-                          mesh.source.empty() ? input : mesh.source, kMethod);
+                          mesh.source.empty() ? input : mesh.source,
+                          sweep ? (scan ? "erleben-dohlmann-t4-scan+zhao2005-fast-sweeping"
+                                        : "chang2008-exact-band+zhao2005-fast-sweeping")
+                                : (scan ? "erleben-dohlmann-t4-scan" : kMethod));
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
     writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
@@ -150,7 +211,8 @@ void cookMeshToSdf(OperatorArgs& args)
         << withThousands(mesh.vertexCount()) << " vertices\n"
         << "  time: " << fmt("%.2f", convertSeconds) << " s conversion, "
         << fmt("%.2f", totalSeconds) << " s total\n";
-    if (report) printStats(out, stats);
+    if (report && !scan) printStats(out, stats);
+    if (report && scan) printScanStats(out, scanStats);
 }
 
 } // namespace
@@ -184,6 +246,25 @@ LEVELFORGE_REGISTER_OPERATOR(
                                "Half-width of the band inside the surface, in voxels")
                    .defaultValue(3.0)
                    .range(0.0, 1000.0, Bound::Exclusive, Bound::Inclusive))
+        .param(Param::choice("expansion", "Expansion",
+                             "none/exact: exact distances in the whole band; sweep: exact in "
+                             "--exact-band, then fast sweeping (first-order) to the full band",
+                             {"none", "sweep", "exact"})
+                   .defaultValue("none"))
+        .param(Param::floating("exact-band", "Exact Band Voxels",
+                               "Half-width of the exact band computed before sweeping, in voxels")
+                   .defaultValue(3.0)
+                   .range(1.0, 1000.0))
+        .param(Param::choice("method", "Method",
+                             "chang: exact band (Chang et al. 2008); scan: T4 scan conversion of "
+                             "tetrahedral shells (Erleben-Dohlmann), see --shell",
+                             {"chang", "scan"})
+                   .defaultValue("chang"))
+        .param(Param::choice("shell", "Shell",
+                             "Tetrahedral shell for --method scan: obb covers the whole band (exact); "
+                             "pseudonormal, thin, offset are tighter and may miss voxels near the band edge",
+                             {"pseudonormal", "thin", "offset", "obb"})
+                   .defaultValue("obb"))
         .param(Param::string("grid-name", "Grid Name", "Name of the grid in the .vdb file")
                    .defaultValue("surface"))
         .param(Param::flag("quiet", "Quiet", "Print no progress on stderr"))
@@ -192,6 +273,7 @@ LEVELFORGE_REGISTER_OPERATOR(
         .example("levelforge mesh-to-sdf bunny.obj bunny.vdb --voxel-size 0.01")
         .example("levelforge mesh-to-sdf builtin:torus-knot knot.vdb --voxel-count 200 "
                  "--exterior-band 5 --interior-band 5")
+        .example("levelforge mesh-to-sdf bunny.obj bunny.vdb --exterior-band 60 --expansion sweep")
         .cook(cookMeshToSdf));
 
 } // namespace levelforge::ops

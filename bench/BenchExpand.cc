@@ -1,0 +1,198 @@
+// levelforge_bench_expand: widening an exact narrow band (half-width 3) to 20 and 60 voxels,
+// levelforge::expandLevelSet (fast sweeping on sparse topology) side by side with
+// openvdb::tools::dilateSdf, both measured against the exact reference (issue 3).
+//
+//   levelforge_bench_expand [--res 256,512] [--widths 20,60] [--stride 31] [--no-openvdb]
+//                           mesh.obj [mesh2.off ...]
+//
+// Prints one markdown table row per (mesh, resolution, width, method): seconds, active voxels,
+// missing voxels (every inactive face-neighbour of the result is checked against the exact
+// distance: a voxel with |d| < width that is not active is missing), mean / max error over the
+// active voxels (every `stride`-th one, in voxels), sign errors, and for levelforge the sweep
+// rounds, the final max change and the sweep time per million voxels (paper Table 4).
+#include <levelforge/ExactReference.h>
+#include <levelforge/FastSweeping.h>
+#include <levelforge/MeshIO.h>
+#include <levelforge/MeshToLevelSet.h>
+
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/FastSweeping.h>
+#include <openvdb/tree/LeafManager.h>
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <chrono>
+#include <memory>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <vector>
+
+using namespace levelforge;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+std::vector<double> parseList(const char* s)
+{
+    std::vector<double> v;
+    std::stringstream ss(s);
+    for (std::string t; std::getline(ss, t, ',');) v.push_back(std::stod(t));
+    return v;
+}
+
+struct Accuracy
+{
+    uint64_t checked = 0, missing = 0, signErrors = 0, extra = 0;
+    double mean = 0, max = 0;
+};
+
+/// Errors over every `stride`-th active voxel; coverage over every inactive face-neighbour.
+Accuracy measure(const openvdb::FloatGrid& g, const ExactReference& ref, double w, uint64_t stride,
+                 const openvdb::FloatGrid* common = nullptr)
+{
+    using openvdb::Coord;
+    struct A { uint64_t n = 0, miss = 0, sign = 0, extra = 0; double sum = 0, mx = 0; };
+    tbb::enumerable_thread_specific<A> tls;
+    openvdb::tree::LeafManager<const openvdb::FloatTree> lm(g.tree());
+    const double h = g.voxelSize()[0];
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, lm.leafCount(), 8), [&](const tbb::blocked_range<size_t>& r) {
+        A& a = tls.local();
+        openvdb::tree::ValueAccessor<const openvdb::FloatTree> acc(g.tree());
+        std::unique_ptr<openvdb::tree::ValueAccessor<const openvdb::FloatTree>> cacc;
+        if (common) cacc.reset(new openvdb::tree::ValueAccessor<const openvdb::FloatTree>(common->tree()));
+        static const Coord nb[6] = {Coord(1, 0, 0), Coord(-1, 0, 0), Coord(0, 1, 0),
+                                    Coord(0, -1, 0), Coord(0, 0, 1), Coord(0, 0, -1)};
+        for (size_t l = r.begin(); l != r.end(); ++l) {
+            for (auto it = lm.leaf(l).cbeginValueOn(); it; ++it) {
+                const Coord c = it.getCoord();
+                const uint64_t hsh = uint64_t(uint32_t(c.x() * 73856093u ^ c.y() * 19349663u ^ c.z() * 83492791u));
+                if (common) {
+                    if (hsh % stride != 0 || !cacc->isValueOn(c)) continue;
+                }
+                if (hsh % stride == 0) {
+                    const double d = ref.signedDistance(g.indexToWorld(c)) / h;
+                    const double v = *it / h;
+                    const double e = std::abs(v - d);
+                    ++a.n;
+                    a.sum += e;
+                    a.mx = std::max(a.mx, e);
+                    if (std::abs(d) > 1e-6 && (d < 0) != (v < 0)) ++a.sign;
+                    if (std::abs(d) >= w) ++a.extra;
+                }
+                for (const Coord& o : nb) {
+                    if (common) break;
+                    const Coord q = c + o;
+                    if (acc.isValueOn(q)) continue;
+                    // count each missing voxel once: from its smallest active neighbour only
+                    bool first = true;
+                    for (const Coord& o2 : nb) {
+                        const Coord p = q + o2;
+                        if (p < c && acc.isValueOn(p)) { first = false; break; }
+                    }
+                    if (!first) continue;
+                    if (std::abs(ref.signedDistance(g.indexToWorld(q)) / h) < w - 1e-6) ++a.miss;
+                }
+            }
+        }
+    });
+    Accuracy r;
+    double sum = 0;
+    for (const A& a : tls) {
+        r.checked += a.n;
+        r.missing += a.miss;
+        r.signErrors += a.sign;
+        r.extra += a.extra;
+        sum += a.sum;
+        r.max = std::max(r.max, a.mx);
+    }
+    r.mean = r.checked ? sum / double(r.checked) : 0;
+    return r;
+}
+
+} // namespace
+
+int main(int argc, char** argv)
+{
+    std::vector<double> resolutions{256, 512}, widths{20, 60};
+    uint64_t stride = 31;
+    bool withOpenVdb = true;
+    std::vector<std::string> meshes;
+    for (int i = 1; i < argc; ++i) {
+        if (!std::strcmp(argv[i], "--res") && i + 1 < argc) resolutions = parseList(argv[++i]);
+        else if (!std::strcmp(argv[i], "--widths") && i + 1 < argc) widths = parseList(argv[++i]);
+        else if (!std::strcmp(argv[i], "--stride") && i + 1 < argc) stride = std::stoull(argv[++i]);
+        else if (!std::strcmp(argv[i], "--no-openvdb")) withOpenVdb = false;
+        else meshes.push_back(argv[i]);
+    }
+    if (meshes.empty()) {
+        std::fprintf(stderr, "usage: levelforge_bench_expand [--res 256,512] [--widths 20,60] "
+                             "[--stride 31] [--no-openvdb] mesh...\n");
+        return 2;
+    }
+    openvdb::initialize();
+    std::printf("| mesh | res | width | method | seconds | active voxels | missing | mean / max err | "
+                "mean / max err, common voxels | sign err | rounds | s / M swept voxels |\n"
+                "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for (const std::string& path : meshes) {
+        const TriangleMesh mesh = readMesh(path);
+        const ExactReference ref(mesh);
+        const std::string name = std::filesystem::path(path).stem().string();
+        for (double res : resolutions) {
+            MeshToLevelSetOptions mo;
+            mo.voxelCount = int(res);
+            auto t0 = Clock::now();
+            openvdb::FloatGrid::Ptr band = meshToLevelSet(mesh, mo);
+            const double tBand = std::chrono::duration<double>(Clock::now() - t0).count();
+            std::printf("| %s | %d | 3 | exact band (meshToLevelSet) | %.2f | %llu | | | | | | |\n",
+                        name.c_str(), int(res), tBand, (unsigned long long)band->activeVoxelCount());
+            std::fflush(stdout);
+            for (double w : widths) {
+                ExpandLevelSetOptions eo;
+                eo.exteriorWidth = eo.interiorWidth = w;
+                ExpandLevelSetStats st;
+                t0 = Clock::now();
+                openvdb::FloatGrid::Ptr ours = expandLevelSet(*band, eo, &st);
+                const double tOurs = std::chrono::duration<double>(Clock::now() - t0).count();
+                const Accuracy a = measure(*ours, ref, w, stride);
+                openvdb::FloatGrid::Ptr ov;
+                double tOv = 0;
+                if (withOpenVdb) {
+                    t0 = Clock::now();
+                    ov = openvdb::tools::dilateSdf(*band, int(std::ceil(w - 3)));
+                    tOv = std::chrono::duration<double>(Clock::now() - t0).count();
+                }
+                std::string common = "";
+                if (ov) {
+                    const Accuracy c = measure(*ours, ref, w, stride, ov.get());
+                    char buf[128];
+                    std::snprintf(buf, sizeof(buf), "%.3f / %.3f", c.mean, c.max);
+                    common = buf;
+                }
+                std::printf("| %s | %d | %g | levelforge sweep | %.2f (topology %.2f, sweep %.2f) | "
+                            "%llu | %llu | %.3f / %.3f | %s | %llu | %d | %.3f |\n",
+                            name.c_str(), int(res), w, tOurs, st.secondsTopology, st.secondsSweep,
+                            (unsigned long long)ours->activeVoxelCount(),
+                            (unsigned long long)a.missing, a.mean, a.max, common.c_str(),
+                            (unsigned long long)a.signErrors, st.iterations,
+                            st.secondsSweep / (double(st.candidateVoxels) * 1e-6));
+                std::fflush(stdout);
+                if (!ov) continue;
+                const Accuracy o = measure(*ov, ref, w, stride);
+                const Accuracy oc = measure(*ov, ref, w, stride, ours.get());
+                std::printf("| %s | %d | %g | openvdb dilateSdf (NN_FACE, %d) | %.2f (%.1fx) | %llu | "
+                            "%llu | %.3f / %.3f | %.3f / %.3f | %llu | | |\n",
+                            name.c_str(), int(res), w, int(std::ceil(w - 3)), tOv, tOv / tOurs,
+                            (unsigned long long)ov->activeVoxelCount(),
+                            (unsigned long long)o.missing, o.mean, o.max, oc.mean, oc.max,
+                            (unsigned long long)o.signErrors);
+                std::fflush(stdout);
+            }
+        }
+    }
+    return 0;
+}

@@ -1,0 +1,106 @@
+// levelforge — tetrahedral shells around the faces of a triangle mesh (T4 scan conversion).
+//
+// Paper: K. Erleben, H. Dohlmann, "Scan Conversion of Signed Distance Fields"
+// (../shared/papers/001_*). Every triangle is enclosed in a bounded volume made only of
+// tetrahedra, each tagged with its source triangle; TetScanConversion.h slices them with z-planes
+// and evaluates the exact distance to the source triangle at every covered voxel centre.
+//
+// Four shell generators, for a narrow-band width eps (same units as the mesh points):
+//   PseudoNormal (§3.3) the 6 points p_i ± eps * n_i (n_i: unit angle-weighted vertex
+//                pseudonormals) → convex hull → one tetrahedron from the hull centre to each hull
+//                triangle.
+//   Thin (§3.4)  as PseudoNormal, but the inward and outward extrusion lengths are limited to the
+//                smallest positive root of the constraint system Eq. 6–11 (no swallow tail):
+//                length = min(eps, root).
+//   Offset (§3.4, "face-offsetting") the 12 points p_i ± eps * n_i and p_i ± eps * n_face.
+//   Obb (§3.5)   rectangle on the longest edge and the height, enlarged by eps in the face plane,
+//                extruded ± eps along the face normal → 5 tetrahedra.
+//
+// Coverage (what is exact, what is not). Call N_eps(T) the set of points within eps of triangle T.
+//   * Obb contains N_eps(T) completely (T lies in the rectangle R, so a point within eps of T is
+//     within eps of R in each frame coordinate). With Obb, every voxel of the eps band is covered
+//     by the shell of its closest triangle, so the scan-converted band is exact.
+//   * PseudoNormal, Thin and Offset do NOT contain N_eps(T) in general: near vertices and edges
+//     the eps-ball bulges beyond the chords of the hull, and Thin shortens the extrusion below eps
+//     wherever the root system demands it. They cover a large part of the band; voxels they miss
+//     are either absent or hold the distance to another (farther) triangle that covers them.
+//     TestTetScanConversion measures both; docs/scan-conversion.md reports the numbers.
+//
+// Convex hulls of <= 12 points are computed here by hand (exhaustive facet test, O(n^4) with
+// n <= 12, exact up to a relative tolerance), coplanar facets fan-triangulated once, so no
+// external hull library is needed; TestTetrahedralShell checks the hull against brute force
+// containment tests.
+#pragma once
+
+#include <levelforge/PseudoNormals.h>
+#include <levelforge/TriangleMesh.h>
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace levelforge {
+
+enum class ShellMethod : uint8_t { PseudoNormal = 0, Thin, Offset, Obb };
+
+/// "pseudonormal", "thin", "offset", "obb".
+const char* toString(ShellMethod method);
+/// Inverse of toString; throws InvalidArgumentError on an unknown name.
+ShellMethod shellMethodFromString(const std::string& name);
+
+/// One tetrahedron of a shell, tagged with the triangle it bounds.
+struct Tetrahedron
+{
+    std::array<Vec3d, 4> p; ///< corners (units of the mesh points)
+    uint32_t triangle = 0;  ///< source face (index into mesh.triangles)
+};
+
+struct TetrahedralShellOptions
+{
+    ShellMethod method = ShellMethod::Obb;
+    /// Narrow-band width eps, in the units of the mesh points (> 0).
+    double epsilon = 1.0;
+};
+
+struct TetrahedralShellStats
+{
+    uint64_t faces = 0;             ///< non-degenerate faces given a shell
+    uint64_t skippedDegenerate = 0; ///< zero-area faces (no shell)
+    uint64_t tetrahedra = 0;
+    uint64_t limitedExtrusions = 0; ///< Thin: faces whose extrusion was shortened below eps
+    double tetrahedraPerFace() const { return faces ? double(tetrahedra) / double(faces) : 0.0; }
+};
+
+/// Builds the shell of every non-degenerate face of `mesh`. `normals` must be the pseudonormals
+/// of a mesh with the same connectivity (directions only are used, so a uniformly scaled copy of
+/// the mesh may share them). Parallel (TBB); the output order is by face, independent of the
+/// number of threads. Throws InvalidArgumentError if epsilon is not positive and finite.
+std::vector<Tetrahedron> buildTetrahedralShell(const TriangleMesh& mesh, const PseudoNormals& normals,
+                                               const TetrahedralShellOptions& options,
+                                               TetrahedralShellStats* stats = nullptr);
+
+namespace shell_internal {
+
+/// Triangles of the convex hull of `points` (n <= 64; intended for n <= 12), as index triples.
+/// Coplanar facets are fan-triangulated once. Duplicate points are tolerated. Empty result if the
+/// points are (nearly) coplanar.
+std::vector<std::array<int, 3>> convexHull(const std::vector<Vec3d>& points);
+
+/// Tetrahedra from the centre of the hull of `points` to each hull triangle (appended to out).
+void hullTetrahedra(const std::vector<Vec3d>& points, uint32_t triangle, std::vector<Tetrahedron>& out);
+
+/// Smallest positive root of the system Eq. 11 for the prism q_i = p_i + sigma * eps * n_i
+/// (sigma = -1: inward, +1: outward); +infinity if there is none.
+double thinShellExtrusionLimit(const std::array<Vec3d, 3>& p, const std::array<Vec3d, 3>& n, double sigma);
+
+/// The eight corners of the Obb shell (bit 0: along the longest edge, bit 1: along the height,
+/// bit 2: along the normal) and its 5-tetrahedron decomposition.
+std::array<Vec3d, 8> obbCorners(const Vec3d& a, const Vec3d& b, const Vec3d& c, double eps);
+void obbTetrahedra(const std::array<Vec3d, 8>& corners, uint32_t triangle, std::vector<Tetrahedron>& out);
+
+/// Unsigned volume of a tetrahedron.
+double volume(const Tetrahedron& t);
+
+} // namespace shell_internal
+} // namespace levelforge

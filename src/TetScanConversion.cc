@@ -1,0 +1,367 @@
+// T4 scan conversion (Erleben & Dohlmann). See TetScanConversion.h.
+#include <levelforge/Exceptions.h>
+#include <levelforge/MeshToLevelSet.h>
+#include <levelforge/Progress.h>
+#include <levelforge/TetScanConversion.h>
+
+#include <openvdb/tools/SignedFloodFill.h>
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+namespace levelforge {
+
+namespace scan_internal {
+
+using Clock = std::chrono::steady_clock;
+inline double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+inline int floorDiv(int a, int b) { return (a >= 0) ? a / b : -((-a + b - 1) / b); }
+
+int sliceTetrahedron(const Tetrahedron& tet, double z, double* x, double* y)
+{
+    std::array<Vec3d, 4> p = tet.p;
+    std::sort(p.begin(), p.end(), [](const Vec3d& a, const Vec3d& b) {
+        return a[2] < b[2] || (a[2] == b[2] && (a[0] < b[0] || (a[0] == b[0] && a[1] < b[1])));
+    });
+    if (z < p[0][2] || z > p[3][2]) return 0;
+    auto cut = [&](int i, int j, int k) {
+        const Vec3d& a = p[i];
+        const Vec3d& b = p[j];
+        const double dz = b[2] - a[2];
+        const double t = dz > 0.0 ? std::clamp((z - a[2]) / dz, 0.0, 1.0) : 0.0;
+        x[k] = a[0] + t * (b[0] - a[0]);
+        y[k] = a[1] + t * (b[1] - a[1]);
+    };
+    if (z < p[1][2]) { // case A: below p1
+        cut(0, 3, 0); cut(0, 1, 1); cut(0, 2, 2);
+        return 3;
+    }
+    if (z < p[2][2]) { // case B: between p1 and p2 (convex quad in this order)
+        cut(0, 3, 0); cut(1, 3, 1); cut(1, 2, 2); cut(0, 2, 3);
+        return 4;
+    }
+    cut(0, 3, 0); cut(1, 3, 1); cut(2, 3, 2); // case C: above p2
+    return 3;
+}
+
+bool conservativeFootprint(const Tetrahedron& tet, int z, CrossSection& cs)
+{
+    double zmin = tet.p[0][2], zmax = zmin;
+    for (int k = 1; k < 4; ++k) { zmin = std::min(zmin, tet.p[k][2]); zmax = std::max(zmax, tet.p[k][2]); }
+    const double za = std::max(double(z) - 0.5, zmin), zb = std::min(double(z) + 0.5, zmax);
+    if (za > zb) return false;
+    // Points of the tetrahedron clipped to [za, zb], projected: both slices + corners in between.
+    struct P { double x, y; };
+    P pts[64];
+    int n = 0;
+    double sx[4], sy[4];
+    for (double zz : {za, zb}) {
+        const int m = sliceTetrahedron(tet, zz, sx, sy);
+        for (int i = 0; i < m; ++i) pts[n++] = {sx[i], sy[i]};
+    }
+    for (int k = 0; k < 4; ++k)
+        if (tet.p[k][2] >= za && tet.p[k][2] <= zb) pts[n++] = {tet.p[k][0], tet.p[k][1]};
+    // Minkowski sum with the cell's square [-1/2, 1/2]^2, then the 2-D convex hull.
+    P q[64];
+    int nq = 0;
+    for (int i = 0; i < n; ++i)
+        for (int c = 0; c < 4; ++c) q[nq++] = {pts[i].x + ((c & 1) ? 0.5 : -0.5), pts[i].y + ((c & 2) ? 0.5 : -0.5)};
+    std::sort(q, q + nq, [](const P& a, const P& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+    auto cross = [](const P& o, const P& a, const P& b) { return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x); };
+    P h[130];
+    int k = 0;
+    for (int i = 0; i < nq; ++i) {
+        while (k >= 2 && cross(h[k - 2], h[k - 1], q[i]) <= 0.0) --k;
+        h[k++] = q[i];
+    }
+    for (int i = nq - 2, t = k + 1; i >= 0; --i) {
+        while (k >= t && cross(h[k - 2], h[k - 1], q[i]) <= 0.0) --k;
+        h[k++] = q[i];
+    }
+    k = std::max(k - 1, 1);
+    // A convex polygon plus a square has at most (polygon vertices + 4) vertices; the clipped
+    // tetrahedron projects to at most 12, so 16 suffice.
+    if (k > CrossSection::kMaxVertices) k = CrossSection::kMaxVertices; // unreachable
+    cs.count = uint32_t(k);
+    for (int i = 0; i < k; ++i) { cs.x[i] = h[i].x; cs.y[i] = h[i].y; }
+    return true;
+}
+
+void checkMesh(const TriangleMesh& mesh)
+{
+    const std::string where = mesh.source.empty() ? std::string("mesh") : mesh.source;
+    if (mesh.triangles.empty()) throw InvalidMeshError(where + ": mesh has no triangles");
+    const size_t nv = mesh.points.size();
+    for (size_t t = 0; t < mesh.triangles.size(); ++t)
+        for (int k = 0; k < 3; ++k)
+            if (mesh.triangles[t][k] >= nv) {
+                std::ostringstream os;
+                os << where << ": face " << t << " refers to vertex " << mesh.triangles[t][k] << " but the mesh has "
+                   << nv << " vertices";
+                throw InvalidMeshError(os.str());
+            }
+    for (size_t v = 0; v < nv; ++v)
+        for (int k = 0; k < 3; ++k)
+            if (!std::isfinite(mesh.points[v][k])) {
+                std::ostringstream os;
+                os << where << ": vertex " << v << " has a non-finite coordinate";
+                throw InvalidMeshError(os.str());
+            }
+}
+
+struct SortedTet
+{
+    Tetrahedron tet;
+    double zmin, zmax;
+};
+
+struct Binned
+{
+    uint64_t key;
+    CrossSection cs;
+};
+
+} // namespace scan_internal
+
+TetScanConverter::TetScanConverter(const TriangleMesh& mesh, const TetScanOptions& options)
+    : mMesh(mesh), mOptions(options)
+{
+}
+
+openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
+{
+    using namespace scan_internal;
+    using openvdb::Coord;
+    using FloatLeaf = openvdb::FloatTree::LeafNodeType;
+    openvdb::initialize();
+    const TetScanOptions& o = mOptions;
+    for (float w : {o.exteriorWidth, o.interiorWidth})
+        if (!std::isfinite(w) || w <= 0.0f) {
+            std::ostringstream os;
+            os << "band width must be a positive number of voxels, got " << w;
+            throw InvalidArgumentError(os.str());
+        }
+    if (o.slabDepth < 8 || o.slabDepth % 8 || o.slabWidth < 8 || o.slabWidth % 8 || o.slabDepth > 512 ||
+        o.slabWidth > 512) {
+        std::ostringstream os;
+        os << "slab depth and width must be multiples of 8 in [8, 512], got " << o.slabDepth << " and "
+           << o.slabWidth;
+        throw InvalidArgumentError(os.str());
+    }
+    checkMesh(mMesh);
+    MeshToLevelSetOptions vsOpt;
+    vsOpt.voxelSize = o.voxelSize;
+    vsOpt.voxelCount = o.voxelCount;
+    const double h = resolveVoxelSize(mMesh, vsOpt);
+    const double extW = o.exteriorWidth, intW = o.interiorWidth;
+    const double eps = std::max(extW, intW); // voxels
+    {
+        const BBoxd b = mMesh.bounds();
+        for (int k = 0; k < 3; ++k) {
+            const double lo = b.min()[k] / h - 4 * eps - 1024, hi = b.max()[k] / h + 4 * eps + 1024;
+            if (!(std::abs(lo) < 1.0e9 && std::abs(hi) < 1.0e9)) {
+                std::ostringstream os;
+                os << "voxel size " << h << " is too small for this mesh: index coordinates would reach "
+                   << std::max(std::abs(lo), std::abs(hi)) << " (limit 1e9)";
+                throw ResourceLimitError(os.str());
+            }
+        }
+    }
+    TetScanStats stats;
+    stats.voxelSize = h;
+    stats.shell = o.shell;
+    auto* interrupter = o.interrupter;
+    if (interrupter) interrupter->start("mesh to level set (scan conversion)");
+
+    // ---- 1. shell, in index space (voxel centres at integer coordinates)
+    auto t0 = Clock::now();
+    PseudoNormals normals(mMesh);
+    TriangleMesh indexMesh;
+    indexMesh.triangles = mMesh.triangles;
+    indexMesh.points.resize(mMesh.points.size());
+    for (size_t i = 0; i < mMesh.points.size(); ++i) indexMesh.points[i] = mMesh.points[i] / h;
+    TetrahedralShellOptions shellOpt;
+    shellOpt.method = o.shell;
+    shellOpt.epsilon = eps;
+    TetrahedralShellStats shellStats;
+    std::vector<Tetrahedron> tets = buildTetrahedralShell(indexMesh, normals, shellOpt, &shellStats);
+    stats.triangles = shellStats.faces;
+    stats.skippedDegenerate = shellStats.skippedDegenerate;
+    stats.tetrahedra = shellStats.tetrahedra;
+    stats.limitedExtrusions = shellStats.limitedExtrusions;
+    const SlabTriangles tris = SlabTriangles::build(mMesh, normals, h);
+    stats.secondsShell = secondsSince(t0);
+    progress_internal::check(interrupter, 10);
+
+    // ---- 2. sort by min z (Figure 8)
+    t0 = Clock::now();
+    std::vector<SortedTet> sorted(tets.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, tets.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const Tetrahedron& t = tets[i];
+            double lo = t.p[0][2], hi = lo;
+            for (int k = 1; k < 4; ++k) { lo = std::min(lo, t.p[k][2]); hi = std::max(hi, t.p[k][2]); }
+            sorted[i] = {t, lo, hi};
+        }
+    });
+    tets.clear();
+    tets.shrink_to_fit();
+    tbb::parallel_sort(sorted.begin(), sorted.end(), [](const SortedTet& a, const SortedTet& b) {
+        if (a.zmin != b.zmin) return a.zmin < b.zmin;
+        if (a.tet.triangle != b.tet.triangle) return a.tet.triangle < b.tet.triangle;
+        for (int k = 0; k < 4; ++k)
+            for (int c = 0; c < 3; ++c)
+                if (a.tet.p[k][c] != b.tet.p[k][c]) return a.tet.p[k][c] < b.tet.p[k][c];
+        return false;
+    });
+    stats.secondsSort = secondsSince(t0);
+
+    // ---- 3. sweep over z-slabs (Figure 9), bin polygons into dense slabs, fill, scatter
+    constexpr double tol = 1e-7; // voxels
+    const int D = o.slabDepth, W = o.slabWidth;
+    CpuSlabBackend cpu;
+    const SlabBackend& backend = o.backend ? *o.backend : cpu;
+    auto tree = std::make_shared<openvdb::FloatTree>(float(extW * h));
+    const float bg = float(extW * h);
+    if (!sorted.empty()) {
+        const double reach = o.conservative ? 0.5 : tol; // how far (z) a tetrahedron reaches a plane
+        double zlo = sorted.front().zmin, zhi = sorted.front().zmax;
+        for (const SortedTet& s : sorted) zhi = std::max(zhi, s.zmax);
+        const int kLo = int(std::ceil(zlo - reach)), kHi = int(std::floor(zhi + reach));
+        const int zStart = floorDiv(kLo, D) * D;
+        std::vector<uint32_t> active;
+        size_t next = 0;
+        double sweepSec = 0, fillSec = 0;
+        for (int z0 = zStart; z0 <= kHi; z0 += D) {
+            const int z1 = z0 + D - 1;
+            auto ts = Clock::now();
+            while (next < sorted.size() && sorted[next].zmin <= double(z1) + reach) active.push_back(uint32_t(next++));
+            active.erase(std::remove_if(active.begin(), active.end(),
+                                        [&](uint32_t i) { return sorted[i].zmax < double(z0) - reach; }),
+                         active.end());
+            if (active.empty()) continue;
+            tbb::enumerable_thread_specific<std::vector<Binned>> tls;
+            tbb::enumerable_thread_specific<uint64_t> sections(0);
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, active.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+                std::vector<Binned>& bins = tls.local();
+                uint64_t& nsec = sections.local();
+                for (size_t a = r.begin(); a != r.end(); ++a) {
+                    const SortedTet& st = sorted[active[a]];
+                    const int ka = std::max(z0, int(std::ceil(st.zmin - reach)));
+                    const int kb = std::min(z1, int(std::floor(st.zmax + reach)));
+                    for (int k = ka; k <= kb; ++k) {
+                        CrossSection cs;
+                        int n = 0;
+                        if (o.conservative) n = conservativeFootprint(st.tet, k, cs) ? int(cs.count) : 0;
+                        else n = sliceTetrahedron(st.tet, double(k), cs.x.data(), cs.y.data());
+                        if (n == 0) continue;
+                        cs.count = uint32_t(n);
+                        cs.z = k;
+                        cs.triangle = st.tet.triangle;
+                        double xmin = cs.x[0], xmax = xmin, ymin = cs.y[0], ymax = ymin;
+                        for (int i = 1; i < n; ++i) {
+                            xmin = std::min(xmin, cs.x[i]); xmax = std::max(xmax, cs.x[i]);
+                            ymin = std::min(ymin, cs.y[i]); ymax = std::max(ymax, cs.y[i]);
+                        }
+                        const int ix0 = int(std::ceil(xmin - tol)), ix1 = int(std::floor(xmax + tol));
+                        const int iy0 = int(std::ceil(ymin - tol)), iy1 = int(std::floor(ymax + tol));
+                        if (ix0 > ix1 || iy0 > iy1) continue;
+                        ++nsec;
+                        for (int tx = floorDiv(ix0, W); tx <= floorDiv(ix1, W); ++tx)
+                            for (int ty = floorDiv(iy0, W); ty <= floorDiv(iy1, W); ++ty) {
+                                const uint64_t key = (uint64_t(uint32_t(tx + (1 << 30))) << 32) | uint32_t(ty + (1 << 30));
+                                bins.push_back({key, cs});
+                            }
+                    }
+                }
+            });
+            std::vector<Binned> items;
+            for (auto& v : tls) items.insert(items.end(), v.begin(), v.end());
+            for (uint64_t v : sections) stats.crossSections += v;
+            tbb::parallel_sort(items.begin(), items.end(), [](const Binned& a, const Binned& b) { return a.key < b.key; });
+            std::vector<size_t> groups;
+            for (size_t i = 0; i < items.size(); ++i)
+                if (i == 0 || items[i].key != items[i - 1].key) groups.push_back(i);
+            groups.push_back(items.size());
+            const size_t ng = groups.size() - 1;
+            stats.slabItems += items.size();
+            stats.slabs += ng;
+            sweepSec += secondsSince(ts);
+
+            ts = Clock::now();
+            std::vector<std::vector<FloatLeaf*>> leaves(ng);
+            std::vector<uint64_t> raster(ng, 0), activeCount(ng, 0);
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, ng, 1), [&](const tbb::blocked_range<size_t>& r) {
+                DenseSlab slab;
+                std::vector<CrossSection> cs;
+                for (size_t g = r.begin(); g != r.end(); ++g) {
+                    const uint64_t key = items[groups[g]].key;
+                    const int tx = int(int64_t(key >> 32) - (1 << 30)), ty = int(int64_t(key & 0xffffffffu) - (1 << 30));
+                    const Coord lo(tx * W, ty * W, z0), hi(tx * W + W - 1, ty * W + W - 1, z1);
+                    slab.reset(openvdb::CoordBBox(lo, hi));
+                    cs.clear();
+                    for (size_t i = groups[g]; i < groups[g + 1]; ++i) cs.push_back(items[i].cs);
+                    backend.fill(slab, cs.data(), cs.size(), tris);
+                    raster[g] = slab.rasterized;
+                    // scatter: one leaf per 8^3 block of the slab
+                    for (int lx = lo.x(); lx <= hi.x(); lx += 8)
+                        for (int ly = lo.y(); ly <= hi.y(); ly += 8)
+                            for (int lz = lo.z(); lz <= hi.z(); lz += 8) {
+                                FloatLeaf* leaf = nullptr;
+                                for (int dx = 0; dx < 8; ++dx)
+                                    for (int dy = 0; dy < 8; ++dy)
+                                        for (int dz = 0; dz < 8; ++dz) {
+                                            const Coord c(lx + dx, ly + dy, lz + dz);
+                                            const size_t idx = slab.index(c);
+                                            if (slab.tri[idx] == DenseSlab::kNone) continue;
+                                            const double v = slab.dist[idx] / h;
+                                            if (!(v < extW && v > -intW)) continue;
+                                            if (!leaf) leaf = new FloatLeaf(Coord(lx, ly, lz), bg, false);
+                                            leaf->setValueOn(c, float(slab.dist[idx]));
+                                            ++activeCount[g];
+                                        }
+                                if (leaf) {
+                                    // inactive voxels of the leaf carry +/- background (sign of nearest active)
+                                    leaves[g].push_back(leaf);
+                                }
+                            }
+                }
+            });
+            for (size_t g = 0; g < ng; ++g) {
+                stats.voxelsRasterized += raster[g];
+                stats.activeVoxels += activeCount[g];
+                for (FloatLeaf* l : leaves[g]) tree->addLeaf(l);
+            }
+            fillSec += secondsSince(ts);
+            progress_internal::check(interrupter, 10 + int(85.0 * double(z0 - zStart + D) / double(kHi - zStart + D)));
+        }
+        stats.secondsSweep = sweepSec;
+        stats.secondsFill = fillSec;
+    }
+
+    // ---- 4. finish: signed flood fill, grid
+    t0 = Clock::now();
+    openvdb::tools::signedFloodFill(*tree);
+    auto grid = openvdb::FloatGrid::create(tree);
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(h));
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    grid->setName(o.gridName);
+    stats.secondsFinish = secondsSince(t0);
+    if (interrupter) { interrupter->wasInterrupted(100); interrupter->end(); }
+    if (statsOut) *statsOut = stats;
+    return grid;
+}
+
+openvdb::FloatGrid::Ptr meshToLevelSetScan(const TriangleMesh& mesh, const TetScanOptions& options, TetScanStats* stats)
+{
+    return TetScanConverter(mesh, options).run(stats);
+}
+
+} // namespace levelforge
