@@ -9,15 +9,20 @@
 //   levelforge_bench mesh.obj --voxel-count 1024 --half-width 3 [--subdivide 2]
 //                    [--error-stride N] [--threads N] [--repeat N] [--json out.json] [--skip-openvdb]
 //
-// Memory: before each method the heap is trimmed (malloc_trim), VmRSS is read, and the kernel's
-// high-water mark is reset by writing "5" to /proc/self/clear_refs. After the method VmHWM is
-// read; "peak" = VmHWM - VmRSS(before), i.e. the extra resident memory the method needed at its
-// worst moment, including its output grid. The input mesh (and, for OpenVDB, its float copy of
-// the points) exists before the measurement starts and is not counted.
+// Memory: before each method the heap is trimmed (malloc_trim, and tbbmalloc's
+// TBBMALLOC_CLEAN_ALL_BUFFERS), VmRSS is read, and the kernel's high-water mark is reset by
+// writing "5" to /proc/self/clear_refs. After the method VmHWM is read; "peak" = VmHWM -
+// VmRSS(before), i.e. the extra resident memory the method needed at its worst moment,
+// including its output grid. The input mesh (and, for OpenVDB, its float copy of the points)
+// exists before the measurement starts and is not counted. By default the reported peak comes
+// from a fresh process per method (this program re-run with --skip-levelforge/--skip-openvdb),
+// because in one process a later run reuses memory the allocators kept from an earlier one;
+// the first-run figure of the shared process is printed too. LFB_DEBUG=1 prints the RSS details.
 
 #include <levelforge/Exceptions.h>
 #include <levelforge/ExactReference.h>
 #include <levelforge/MeshIO.h>
+#include <levelforge/MeshShapes.h>
 #include <levelforge/MeshToLevelSet.h>
 #include <levelforge/TriangleMesh.h>
 
@@ -33,8 +38,13 @@
 #include <tbb/blocked_range.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
+#include <tbb/scalable_allocator.h>
 
+#include <fcntl.h>
 #include <malloc.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -93,6 +103,10 @@ struct MemProbe
     bool resetOk = false;
     void start()
     {
+        scalable_free(scalable_malloc(16)); // the clean command below crashes if tbbmalloc is not initialised
+        // Give freed memory back to the kernel: glibc's heap, and TBB's scalable allocator
+        // (libtbbmalloc, used by TBB containers in OpenVDB and levelforge), which keeps its own pools.
+        scalable_allocation_command(TBBMALLOC_CLEAN_ALL_BUFFERS, nullptr);
         malloc_trim(0);
         rssBeforeKB = procStatusKB("VmRSS:");
         resetOk = resetPeakRss();
@@ -102,9 +116,38 @@ struct MemProbe
     {
         const long long hwm = procStatusKB("VmHWM:");
         if (!resetOk || hwm < 0 || rssBeforeKB < 0) return std::numeric_limits<double>::quiet_NaN();
+        if (const char* dbg = std::getenv("LFB_DEBUG"); dbg && *dbg)
+            std::cerr << "  [mem] before rss " << rssBeforeKB << " hwm " << hwm << " now rss " << procStatusKB("VmRSS:")
+                      << " anon " << procStatusKB("RssAnon:") << " file " << procStatusKB("RssFile:") << "\n";
         return double(hwm - rssBeforeKB) / 1024.0;
     }
 };
+
+std::string selfExe()
+{
+    std::vector<char> buf(4096);
+    const ssize_t n = ::readlink("/proc/self/exe", buf.data(), buf.size() - 1);
+    if (n <= 0) throw std::runtime_error("cannot read /proc/self/exe");
+    return std::string(buf.data(), size_t(n));
+}
+
+/// Runs args[0] with args, stdout to /dev/null (stderr kept); returns its exit status.
+int runChild(const std::vector<std::string>& args)
+{
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+    pid_t pid = 0;
+    const int err = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (err != 0) return -1;
+    int status = 0;
+    if (::waitpid(pid, &status, 0) != pid) return -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
 
 // ------------------------------------------------------------------ Loop subdivision (OpenMesh)
 
@@ -159,13 +202,16 @@ struct MethodResult
     bool ran = false;
     std::vector<double> seconds;     // one per repetition
     std::vector<double> peaksMB;     // one per repetition (MB, NaN if unavailable)
+    double ownProcessPeakMB = std::numeric_limits<double>::quiet_NaN();  // fresh process, one run
+    double ownProcessSeconds = std::numeric_limits<double>::quiet_NaN();
     double gridMB = 0;               // FloatGrid::memUsage() of the output
     uint64_t activeVoxels = 0;
     uint64_t leafNodes = 0;
     levelforge::BandErrorReport err;
     double errorSeconds = 0;
     openvdb::FloatGrid::Ptr grid;
-    /// Peak of the first repetition: nothing of this method was retained by the allocator yet.
+    /// Peak of the first repetition (after the warm-up): nothing of this method's data was retained
+    /// by the allocator yet.
     double peakMB() const { return peaksMB.empty() ? std::numeric_limits<double>::quiet_NaN() : peaksMB.front(); }
     double bestSeconds() const { return seconds.empty() ? 0.0 : *std::min_element(seconds.begin(), seconds.end()); }
 };
@@ -243,6 +289,11 @@ int main(int argc, char** argv)
     app.add_flag("--skip-levelforge", skipLevelforge, "run OpenVDB only (e.g. to measure its memory in isolation)");
     app.add_flag("--openvdb-first", openVdbFirst, "run OpenVDB before levelforge in each repetition");
     app.add_flag("--skip-errors", skipErrors, "do not compare with the exact reference");
+    bool noIsolation = false;
+    std::string childOut;
+    app.add_flag("--no-memory-isolation", noIsolation,
+                 "do not measure each method's peak memory in a fresh process of its own (see docs/benchmarks.md)");
+    app.add_option("--memory-child-out", childOut, "internal: run as a measuring child, write results here")->group("");
     CLI11_PARSE(app, argc, argv);
 
     openvdb::initialize();
@@ -307,6 +358,25 @@ int main(int argc, char** argv)
             std::this_thread::sleep_for(std::chrono::microseconds(200));
         });
 
+        // Warm-up: one small conversion with each method (an icosphere at 64 voxels), so that the
+        // code pages of both libraries are resident and neither method's first run is charged
+        // for paging in code (VmHWM counts file-backed pages too).
+        {
+            const levelforge::TriangleMesh ball = levelforge::makeIcosphere(levelforge::Vec3d(0.0), 1.0, 3);
+            levelforge::MeshToLevelSetOptions wo = opts;
+            wo.voxelSize = 0.0;
+            wo.voxelCount = 64;
+            if (!skipLevelforge) (void)levelforge::meshToLevelSet(ball, wo);
+            if (!skipOpenVdb) {
+                std::vector<openvdb::Vec3s> bp;
+                std::vector<openvdb::Vec3I> bt;
+                for (const auto& p : ball.points) bp.emplace_back(float(p[0]), float(p[1]), float(p[2]));
+                for (const auto& t : ball.triangles) bt.emplace_back(t[0], t[1], t[2]);
+                (void)openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(
+                    *openvdb::math::Transform::createLinearTransform(2.0 / 64), bp, bt, halfWidth);
+            }
+        }
+
         auto runLevelforge = [&](int r) {
             lf.grid.reset();
             MemProbe mem;
@@ -333,10 +403,40 @@ int main(int argc, char** argv)
             std::cout << "  run " << r + 1 << ": OpenVDB    " << fmt(ov.seconds.back()) << " s, peak "
                       << fmt(ov.peaksMB.back(), 1) << " MB\n" << std::flush;
         };
+        // Peak memory of each method in a fresh process of its own (the same program, one method,
+        // one run, no error check). In one process, memory the allocators kept from an earlier
+        // run is reused by a later one and hides part of its peak; see docs/benchmarks.md.
+        if (childOut.empty() && !noIsolation) {
+            for (MethodResult* m : {&lf, &ov}) {
+                if ((m == &lf && skipLevelforge) || (m == &ov && skipOpenVdb)) continue;
+                const std::string out = "/tmp/levelforge_bench_child_" + std::to_string(::getpid()) + ".txt";
+                std::vector<std::string> args = {selfExe(), meshPath, "--voxel-count", std::to_string(voxelCount),
+                                                 "--half-width", fmt(halfWidth, 6), "--subdivide", std::to_string(subdivide),
+                                                 "--threads", std::to_string(threads), "--repeat", "1", "--skip-errors",
+                                                 m == &lf ? "--skip-openvdb" : "--skip-levelforge", "--memory-child-out", out};
+                std::cout << "  own process: " << m->name << " ..." << std::flush;
+                const int rc = runChild(args);
+                std::ifstream in(out);
+                double pk = std::numeric_limits<double>::quiet_NaN(), sec = pk;
+                if (rc != 0 || !(in >> pk >> sec))
+                    throw std::runtime_error("memory measurement child for " + m->name + " failed (exit " + std::to_string(rc) + ")");
+                std::remove(out.c_str());
+                m->ownProcessPeakMB = pk;
+                m->ownProcessSeconds = sec;
+                std::cout << " " << fmt(sec) << " s, peak " << fmt(pk, 1) << " MB\n" << std::flush;
+            }
+        }
+
         for (int r = 0; r < repeat; ++r) {
             if (openVdbFirst && !skipOpenVdb) runOpenVdb(r);
             if (!skipLevelforge) runLevelforge(r);
             if (!openVdbFirst && !skipOpenVdb) runOpenVdb(r);
+        }
+        if (!childOut.empty()) {
+            const MethodResult& m = lf.ran ? lf : ov;
+            std::ofstream out(childOut);
+            out << std::setprecision(10) << m.peakMB() << " " << m.bestSeconds() << "\n";
+            return out ? 0 : 1;
         }
         for (MethodResult* m : {&lf, &ov}) {
             if (!m->ran) continue;
@@ -379,7 +479,8 @@ int main(int argc, char** argv)
         };
         both("time, s (best of " + std::to_string(repeat) + ")", [](const MethodResult& m) { return fmt(m.bestSeconds()); });
         rows.push_back({"speed-up (OpenVDB time / levelforge time)", std::isnan(ratio) ? std::string("n/a") : fmt(ratio, 2) + "x", ""});
-        both("peak memory, MB (VmHWM - RSS before, run 1)", [](const MethodResult& m) { return fmt(m.peakMB(), 1); });
+        both("peak memory, MB (own process)", [](const MethodResult& m) { return fmt(m.ownProcessPeakMB, 1); });
+        both("peak memory, MB (this process, run 1)", [](const MethodResult& m) { return fmt(m.peakMB(), 1); });
         both("output grid memUsage, MB", [](const MethodResult& m) { return fmt(m.gridMB, 1); });
         both("active voxels", [](const MethodResult& m) { return fmtInt(m.activeVoxels); });
         both("leaf nodes", [](const MethodResult& m) { return fmtInt(m.leafNodes); });
@@ -436,7 +537,9 @@ int main(int argc, char** argv)
                 o << "{\"ran\": " << (m.ran ? "true" : "false") << ", \"seconds_best\": " << jnum(m.bestSeconds())
                   << ", \"seconds\": [";
                 for (size_t i = 0; i < m.seconds.size(); ++i) o << (i ? ", " : "") << jnum(m.seconds[i]);
-                o << "], \"peak_mb\": " << jnum(m.peakMB()) << ", \"peaks_mb\": [";
+                o << "], \"peak_mb_own_process\": " << jnum(m.ownProcessPeakMB)
+                  << ", \"seconds_own_process\": " << jnum(m.ownProcessSeconds)
+                  << ", \"peak_mb\": " << jnum(m.peakMB()) << ", \"peaks_mb\": [";
                 for (size_t i = 0; i < m.peaksMB.size(); ++i) o << (i ? ", " : "") << jnum(m.peaksMB[i]);
                 o << "]" << ", \"grid_mb\": " << jnum(m.gridMB)
                   << ", \"active_voxels\": " << m.activeVoxels << ", \"leaf_nodes\": " << m.leafNodes;

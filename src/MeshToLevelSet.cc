@@ -289,7 +289,10 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
     auto* out = new FloatLeaf(origin, ctx.background, false);
     uint64_t active = 0;
     const float bg = ctx.background;
-    constexpr double kMargin = 1e-3; // cells; covers the single-precision rounding of the bounds
+    // Cells; covers the single-precision rounding of the bounds. The bound terms that matter are
+    // differences of values of magnitude <= limit + ~20 cells (the plane or edge line passes that
+    // close to the leaf centre), so their rounding error is a few ulps of that: ~1e-5 at limit 3.
+    const double kMargin = 1e-4 * std::max(1.0, (ctx.limit + 20.0) / 32.0);
     auto bitAt = [&](int x, int y, int z) {
         return (s.bits[rowIndex(x, y) * W + (z >> 6)] >> (z & 63)) & 1ull;
     };
