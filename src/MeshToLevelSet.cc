@@ -4,6 +4,7 @@
 // (compile time on 2 cores).
 #include <levelforge/Exceptions.h>
 #include <levelforge/MeshToLevelSet.h>
+#include <levelforge/MeshValidation.h>
 #include <levelforge/MicrotriangleVoxelizer.h>
 #include <levelforge/Progress.h>
 #include <levelforge/PseudoNormals.h>
@@ -368,30 +369,6 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
     return out;
 }
 
-void checkMesh(const TriangleMesh& mesh)
-{
-    const std::string where = mesh.source.empty() ? std::string("mesh") : mesh.source;
-    if (mesh.triangles.empty()) throw InvalidMeshError(where + ": mesh has no triangles");
-    const size_t nv = mesh.points.size();
-    for (size_t t = 0; t < mesh.triangles.size(); ++t)
-        for (int k = 0; k < 3; ++k)
-            if (mesh.triangles[t][k] >= nv) {
-                std::ostringstream os;
-                os << where << ": face " << t << " refers to vertex " << mesh.triangles[t][k]
-                   << " but the mesh has " << nv << " vertices";
-                throw InvalidMeshError(os.str());
-            }
-    for (size_t v = 0; v < nv; ++v) {
-        const Vec3d& p = mesh.points[v];
-        if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
-            std::ostringstream os;
-            os << where << ": vertex " << v << " has a non-finite coordinate (" << p[0] << ", " << p[1]
-               << ", " << p[2] << ")";
-            throw InvalidMeshError(os.str());
-        }
-    }
-}
-
 void checkWidth(const char* name, float w)
 {
     if (!std::isfinite(w) || w <= 0.0f) {
@@ -435,7 +412,7 @@ openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh, const MeshToLev
 
     checkWidth("exterior band width", options.exteriorWidth);
     checkWidth("interior band width", options.interiorWidth);
-    checkMesh(mesh);
+    requireUsableMesh(mesh);
     const double h = resolveVoxelSize(mesh, options);
     stats.voxelSize = h;
 

@@ -428,4 +428,29 @@ TriangleMesh withoutDegenerateTriangles(const TriangleMesh& mesh, uint64_t* remo
     return out;
 }
 
+void requireUsableMesh(const TriangleMesh& mesh)
+{
+    const std::string where = mesh.source.empty() ? std::string("mesh") : mesh.source;
+    if (mesh.triangles.empty()) throw InvalidMeshError(where + ": mesh has no triangles");
+    const size_t nv = mesh.points.size();
+    for (size_t t = 0; t < mesh.triangles.size(); ++t)
+        for (int k = 0; k < 3; ++k)
+            if (mesh.triangles[t][k] >= nv) {
+                std::ostringstream os;
+                os << where << ": face " << t << " refers to vertex " << mesh.triangles[t][k]
+                   << " but the mesh has " << nv << " vertices";
+                throw InvalidMeshError(os.str());
+            }
+    for (size_t v = 0; v < nv; ++v) {
+        const Vec3d& p = mesh.points[v];
+        if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+            std::ostringstream os;
+            os << where << ": vertex " << v << " has a non-finite coordinate (" << p[0] << ", " << p[1]
+               << ", " << p[2] << ")";
+            throw InvalidMeshError(os.str());
+        }
+    }
+}
+
+
 } // namespace levelforge

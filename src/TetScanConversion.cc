@@ -3,6 +3,7 @@
 #include <levelforge/MeshToLevelSet.h>
 #include <levelforge/Progress.h>
 #include <levelforge/TetScanConversion.h>
+#include <levelforge/MeshValidation.h>
 
 #include <openvdb/tools/SignedFloodFill.h>
 
@@ -94,27 +95,6 @@ bool conservativeFootprint(const Tetrahedron& tet, int z, CrossSection& cs)
     return true;
 }
 
-void checkMesh(const TriangleMesh& mesh)
-{
-    const std::string where = mesh.source.empty() ? std::string("mesh") : mesh.source;
-    if (mesh.triangles.empty()) throw InvalidMeshError(where + ": mesh has no triangles");
-    const size_t nv = mesh.points.size();
-    for (size_t t = 0; t < mesh.triangles.size(); ++t)
-        for (int k = 0; k < 3; ++k)
-            if (mesh.triangles[t][k] >= nv) {
-                std::ostringstream os;
-                os << where << ": face " << t << " refers to vertex " << mesh.triangles[t][k] << " but the mesh has "
-                   << nv << " vertices";
-                throw InvalidMeshError(os.str());
-            }
-    for (size_t v = 0; v < nv; ++v)
-        for (int k = 0; k < 3; ++k)
-            if (!std::isfinite(mesh.points[v][k])) {
-                std::ostringstream os;
-                os << where << ": vertex " << v << " has a non-finite coordinate";
-                throw InvalidMeshError(os.str());
-            }
-}
 
 struct SortedTet
 {
@@ -155,7 +135,7 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
            << o.slabWidth;
         throw InvalidArgumentError(os.str());
     }
-    checkMesh(mMesh);
+    requireUsableMesh(mMesh);
     MeshToLevelSetOptions vsOpt;
     vsOpt.voxelSize = o.voxelSize;
     vsOpt.voxelCount = o.voxelCount;

@@ -98,6 +98,11 @@ struct MeshReport
 /// Checks @a mesh. Throws InvalidMeshError on fatal problems (see the header comment).
 MeshReport validateMesh(const TriangleMesh& mesh);
 
+/// Only the fatal checks, cheap (one pass over faces and vertices): throws InvalidMeshError
+/// naming mesh.source and the element when the mesh has no triangles, a face refers to a vertex
+/// that does not exist, or a vertex has a NaN/Inf coordinate. The converters call it first.
+void requireUsableMesh(const TriangleMesh& mesh);
+
 /// A copy of @a mesh without its degenerate triangles (same test as validateMesh); vertices are
 /// kept as they are. @a removed, when given, receives the number of triangles removed.
 TriangleMesh withoutDegenerateTriangles(const TriangleMesh& mesh, uint64_t* removed = nullptr);
