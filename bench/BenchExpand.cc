@@ -33,17 +33,12 @@
 #include <vector>
 
 using namespace levelforge;
+#include "BenchUtil.h"
+using levelforge_bench::parseList;
 using Clock = std::chrono::steady_clock;
 
 namespace {
 
-std::vector<double> parseList(const char* s)
-{
-    std::vector<double> v;
-    std::stringstream ss(s);
-    for (std::string t; std::getline(ss, t, ',');) v.push_back(std::stod(t));
-    return v;
-}
 
 struct Accuracy
 {

@@ -16,7 +16,7 @@
 // cylinder): the plane y = 0 through the axis; red = negative, blue = positive (brightness falls
 // with |d|), yellow = voxel of the exact band that the shell missed, green = present but wrong
 // (> 1e-4 voxel from the exact distance), dark grey = outside the band. Written with a minimal
-// built-in PNG encoder over zlib (no libpng needed).
+// PNG written with libpng.
 #include <levelforge/ExactReference.h>
 #include <levelforge/MeshIO.h>
 #include <levelforge/MeshToLevelSet.h>
@@ -25,7 +25,8 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
 
-#include <zlib.h>
+#include <png.h>
+#include <levelforge/Exceptions.h>
 
 #include <chrono>
 #include <cmath>
@@ -38,58 +39,25 @@
 #include <vector>
 
 using namespace levelforge;
+#include "BenchUtil.h"
+using levelforge_bench::parseList;
+using levelforge_bench::since;
 using Clock = std::chrono::steady_clock;
 
 namespace {
 
-std::vector<double> parseList(const char* s)
-{
-    std::vector<double> v;
-    std::stringstream ss(s);
-    for (std::string t; std::getline(ss, t, ',');) v.push_back(std::stod(t));
-    return v;
-}
 
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-// ------------------------------------------------------------------ minimal PNG writer
-uint32_t crc32(const unsigned char* d, size_t n, uint32_t c = 0xffffffffu)
-{
-    for (size_t i = 0; i < n; ++i) {
-        c ^= d[i];
-        for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
-    }
-    return c;
-}
-
+/// Writes an 8-bit RGB image with libpng's simplified API; throws IoError on failure.
 void writePng(const std::string& path, int w, int h, const std::vector<unsigned char>& rgb)
 {
-    std::vector<unsigned char> raw;
-    for (int y = 0; y < h; ++y) {
-        raw.push_back(0);
-        raw.insert(raw.end(), rgb.begin() + size_t(y) * w * 3, rgb.begin() + size_t(y + 1) * w * 3);
-    }
-    uLongf zlen = compressBound(uLong(raw.size()));
-    std::vector<unsigned char> z(zlen);
-    compress2(z.data(), &zlen, raw.data(), uLong(raw.size()), 9);
-    z.resize(zlen);
-    std::ofstream f(path, std::ios::binary);
-    auto be32 = [&](uint32_t v) { for (int s = 24; s >= 0; s -= 8) f.put(char((v >> s) & 0xff)); };
-    auto chunk = [&](const char* type, const std::vector<unsigned char>& data) {
-        be32(uint32_t(data.size()));
-        std::vector<unsigned char> td(type, type + 4);
-        td.insert(td.end(), data.begin(), data.end());
-        f.write(reinterpret_cast<const char*>(td.data()), std::streamsize(td.size()));
-        be32(crc32(td.data(), td.size()) ^ 0xffffffffu);
-    };
-    const unsigned char sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-    f.write(reinterpret_cast<const char*>(sig), 8);
-    std::vector<unsigned char> ihdr = {
-        (unsigned char)(w >> 24), (unsigned char)(w >> 16), (unsigned char)(w >> 8), (unsigned char)w,
-        (unsigned char)(h >> 24), (unsigned char)(h >> 16), (unsigned char)(h >> 8), (unsigned char)h, 8, 2, 0, 0, 0};
-    chunk("IHDR", ihdr);
-    chunk("IDAT", z);
-    chunk("IEND", {});
+    png_image image;
+    std::memset(&image, 0, sizeof(image));
+    image.version = PNG_IMAGE_VERSION;
+    image.width = png_uint_32(w);
+    image.height = png_uint_32(h);
+    image.format = PNG_FORMAT_RGB;
+    if (!png_image_write_to_file(&image, path.c_str(), 0, rgb.data(), 0, nullptr))
+        throw IoError(path + ": cannot write PNG (" + image.message + ")");
 }
 
 TriangleMesh makeCylinder(int sides, double radius, double height)
