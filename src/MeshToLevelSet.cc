@@ -470,8 +470,8 @@ openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh, const MeshToLev
     stats.caseCounts = vc.cases;
     stats.boundaryCells = lists.cellCount();
     stats.triangleListEntries = lists.entryCount();
-    stats.secondsVoxelize = secondsSince(t0);
-    stats.secondsLists = 0.0; // both passes are timed together in secondsVoxelize
+    stats.secondsLists = lists.secondsLists();
+    stats.secondsVoxelize = secondsSince(t0) - stats.secondsLists; // checks, normals, pass 1
     progress_internal::check(interrupter, 20);
 
     // ---- candidate output leaves: leaves within reach R of a boundary-cell leaf

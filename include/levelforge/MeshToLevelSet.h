@@ -64,6 +64,8 @@ struct MeshToLevelSetStats
     uint64_t activeVoxels = 0;            ///< voxels in the output band
     uint64_t distanceEvaluations = 0;     ///< exact point–triangle distance evaluations
     uint64_t boundTests = 0;              ///< cheap lower-bound tests that avoided an evaluation
+    /// Wall-clock seconds: set-up + pseudonormals + voxelization pass 1; numbering + list pass 2
+    /// + sorting; distances; tree assembly and flood fill.
     double secondsVoxelize = 0, secondsLists = 0, secondsDistance = 0, secondsFinish = 0;
     double evaluationsPerActiveVoxel() const
     {

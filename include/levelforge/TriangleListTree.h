@@ -48,6 +48,11 @@ public:
     const uint32_t* listEnd(uint32_t ordinal) const { return mIds.data() + mBegin[ordinal + 1]; }
     uint32_t listSize(uint32_t ordinal) const { return uint32_t(mBegin[ordinal + 1] - mBegin[ordinal]); }
 
+    /// Wall-clock seconds of build(): pass 1 (voxelization and counting) and the rest (numbering,
+    /// pass 2, sorting).
+    double secondsVoxelize() const { return mSecondsVoxelize; }
+    double secondsLists() const { return mSecondsLists; }
+
     /// Bytes held by the tree and the arrays.
     size_t memoryUsage() const;
 
@@ -55,6 +60,7 @@ private:
     TreeType::Ptr mTree;
     std::vector<uint64_t> mBegin; ///< size cellCount()+1
     std::vector<uint32_t> mIds;
+    double mSecondsVoxelize = 0.0, mSecondsLists = 0.0;
 };
 
 } // namespace levelforge
