@@ -43,11 +43,10 @@ inline double secondsSince(Clock::time_point t0)
 
 constexpr uint32_t kNone = 0xffffffffu;
 
-/// A triangle copied next to the leaf that uses it (cell-space vertices, AABB and plane).
+/// A triangle copied next to the leaf that uses it (cell-space vertices, double precision).
 struct PreparedTri
 {
-    Vec3d a, b, c, lo, hi, n; // n: unit normal
-    double offset;            // n · a
+    Vec3d a, b, c;
     uint32_t id;
 };
 
@@ -63,29 +62,17 @@ struct RowOffset
 
 inline double minAxisDist(int o) { const double d = std::abs(o) - 0.5; return d > 0.0 ? d : 0.0; }
 
-/// A candidate triangle of a sub-block with its lower bound (squared, cells).
-struct Cand
-{
-    double lb2;
-    uint32_t lt;
-};
 
 /// Per-thread scratch reused for every leaf: no per-voxel allocation.
 struct Scratch
 {
-    std::vector<Cand> cands;
     std::vector<uint64_t> bits;       // boundary-cell bit rows (along z) of the gathered region
-    std::vector<uint32_t> cellStart;  // per region cell: first entry in localList
-    std::vector<uint32_t> cellCount;  // per region cell: list length
     std::vector<uint32_t> cellOrd;    // per gathered cell (temporary): global ordinal
     std::vector<uint8_t> zwin;        // z-windows of the dilated rows, per dilation k
-    std::vector<uint32_t> localList;  // lists with leaf-local triangle ids
     std::vector<PreparedTri> tris;
     std::vector<float> soa, lb2;  // lower-bound planes (16 SoA arrays) and per-voxel bounds
     std::vector<uint32_t> surv;
-    std::vector<uint32_t> hashKey, hashVal;
-    std::vector<uint32_t> stamp;
-    uint32_t gen = 0;
+    std::vector<uint32_t> hashKey;    // leaf-local set of triangle ids (open addressing)
     uint64_t evaluations = 0, boundTests = 0, candidateVoxels = 0, activeVoxels = 0, localCells = 0;
 };
 
@@ -153,14 +140,12 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
 {
     const int R = ctx.R, D = ctx.D, W = ctx.words;
     const Coord rmin = origin.offsetBy(-R), rmax = origin.offsetBy(7 + R);
-    const size_t nRegion = size_t(D) * D * D;
     const size_t nRows = size_t(D) * D;
     auto rowIndex = [D](int x, int y) { return size_t(x) * D + y; };
 
     // ---- gather the boundary cells of the region (one gather per leaf, cf. Yin et al. §6.2).
     // Region rows run along z, like the z-bytes of a VDB leaf's value mask.
     s.bits.assign(nRows * W, 0ull);
-    if (s.cellStart.size() < nRegion) { s.cellStart.resize(nRegion); s.cellCount.resize(nRegion); }
     s.cellOrd.clear();
     uint64_t entries = 0;
     const auto& tree = ctx.lists.tree();
@@ -271,8 +256,6 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
             Vec3d m = (v[(k + 1) % 3] - v[k]).cross(n);
             const double len = m.length();
             m = len > 0.0 ? m / len : Vec3d(0.0);
-            float* E = &F[4 + 4 * k][0];
-            (void)E;
             F[4 + 4 * k][i] = float(m[0]);
             F[5 + 4 * k][i] = float(m[1]);
             F[6 + 4 * k][i] = float(m[2]);
