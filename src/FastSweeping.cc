@@ -1,5 +1,6 @@
 // levelforge — fast sweeping expansion of a level set on sparse VDB topology (see the header).
 #include <levelforge/FastSweeping.h>
+#include <levelforge/VectorExpansion.h>
 
 #include <levelforge/Exceptions.h>
 #include <levelforge/Progress.h>
@@ -463,10 +464,11 @@ openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
 
     // ---- resource estimate before any allocation: a shell of the input's surface area
     const double area = double(stats.frozenVoxels) / std::max(1.0, w0Ext + w0Int);
-    const double keepExt =
-        wExt + opt.coverageMargin + opt.coverageMarginPerVoxel * std::max(0.0, wExt - w0Ext);
-    const double keepInt =
-        wInt + opt.coverageMargin + opt.coverageMarginPerVoxel * std::max(0.0, wInt - w0Int);
+    const bool vectorMethod = opt.method == ExpansionMethod::Vector;
+    const double perVoxel = vectorMethod ? 0.0 : opt.coverageMarginPerVoxel;
+    const double keepExt = wExt + opt.coverageMargin + perVoxel * std::max(0.0, wExt - w0Ext);
+    const double keepInt = wInt + opt.coverageMargin + perVoxel * std::max(0.0, wInt - w0Int);
+    stats.method = opt.method;
     const openvdb::CoordBBox inBox = input.evalActiveVoxelBoundingBox();
     double lowerEstimate = 0;
     if (opt.domain == ExpansionDomain::BoundingBox) {
@@ -562,7 +564,29 @@ openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
 
     // ---- sweeps
     auto t1 = Clock::now();
-    {
+    if (vectorMethod) {
+        vector_expansion_internal::PropagationStats ps;
+        stats.candidateVoxels = tree->activeVoxelCount();
+        vector_expansion_internal::ShellVectors shell;
+        shell.points = opt.closestPoints;
+        if (opt.closestPoints && opt.closestTriangles && opt.mesh) {
+            shell.triangles = opt.closestTriangles;
+            shell.mesh = opt.mesh;
+        }
+        vector_expansion_internal::propagateClosestVectors(*tree, input.tree(), shell, input.transform(),
+                                                           kBig, opt.interrupter, &ps);
+        stats.refinedVoxels = ps.refinedVoxels;
+        stats.walkSteps = ps.walkSteps;
+        stats.refineEvaluations = ps.refineEvaluations;
+        stats.refineRounds = ps.refineRounds;
+        stats.secondsVectorSetup = ps.secondsSetup;
+        stats.secondsVectorPasses = ps.secondsPasses;
+        stats.secondsVectorFinish = ps.secondsFinish;
+        stats.iterations = 1;
+        stats.converged = true;
+        stats.estimatedVectors = ps.estimatedVectors;
+        stats.unreachedVoxels = ps.unreachedVoxels;
+    } else {
         Sweeper sweeper(*tree, input.tree(), float(h), float(opt.tolerance * h), opt.interrupter);
         stats.candidateVoxels = sweeper.candidateVoxels();
         sweeper.run(opt.maxIterations, stats);

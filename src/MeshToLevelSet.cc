@@ -34,6 +34,8 @@ namespace meshtols_internal {
 
 using openvdb::Coord;
 using FloatLeaf = openvdb::FloatTree::LeafNodeType;
+using Vec3fLeaf = openvdb::Vec3fTree::LeafNodeType;
+using Int32Leaf = openvdb::Int32Tree::LeafNodeType;
 using Clock = std::chrono::steady_clock;
 
 inline double secondsSince(Clock::time_point t0)
@@ -136,7 +138,10 @@ uint32_t computeBounds(float* const* F, size_t n, float px, float py, float pz, 
 }
 
 /// Fills one output leaf with origin `origin`; returns nullptr if no voxel is active.
-FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
+// cpOut / triOut (optional, together): receive leaves of closest-point offsets (voxel units) and
+// closest-triangle indices for the active voxels.
+FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, Vec3fLeaf** cpOut = nullptr,
+                       Int32Leaf** triOut = nullptr)
 {
     const int R = ctx.R, D = ctx.D, W = ctx.words;
     const Coord rmin = origin.offsetBy(-R), rmax = origin.offsetBy(7 + R);
@@ -271,6 +276,8 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
     // order until the bound passes the best distance. The sign is the pseudonormal of the
     // closest feature (§4.2).
     auto* out = new FloatLeaf(origin, ctx.background, false);
+    Vec3fLeaf* cpLeaf = cpOut ? new Vec3fLeaf(origin, openvdb::Vec3f(0.0f), false) : nullptr;
+    Int32Leaf* triLeaf = cpOut ? new Int32Leaf(origin, -1, false) : nullptr;
     uint64_t active = 0;
     const float bg = ctx.background;
     // Cells; covers the single-precision rounding of the bounds. The bound terms that matter are
@@ -340,6 +347,10 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
                 const bool inside = ctx.normals.isInside(s.tris[bestT].id, bestCp, p);
                 if (inside ? d < ctx.intW : d < ctx.extW) {
                     out->setValueOn(offset, float((inside ? -d : d) * ctx.voxelSize));
+                    if (cpLeaf) {
+                        cpLeaf->setValueOn(offset, openvdb::Vec3f(bestCp.point - p));
+                        triLeaf->setValueOn(offset, int32_t(s.tris[bestT].id));
+                    }
                     ++active;
                 } else {
                     out->setValueOff(offset, inside ? -bg : bg);
@@ -348,7 +359,8 @@ FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s)
         }
     }
     s.activeVoxels += active;
-    if (active == 0) { delete out; return nullptr; }
+    if (active == 0) { delete out; delete cpLeaf; delete triLeaf; return nullptr; }
+    if (cpOut) { *cpOut = cpLeaf; *triOut = triLeaf; }
     return out;
 }
 
@@ -385,8 +397,9 @@ double resolveVoxelSize(const TriangleMesh& mesh, const MeshToLevelSetOptions& o
     return extent / double(options.voxelCount);
 }
 
-openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh, const MeshToLevelSetOptions& options,
-                                       MeshToLevelSetStats* statsOut)
+namespace {
+LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSetOptions& options,
+                                  MeshToLevelSetStats* statsOut, bool wantClosest)
 {
     using namespace meshtols_internal;
     openvdb::initialize();
@@ -503,6 +516,8 @@ openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh, const MeshToLev
 
     // ---- §4: distances, leaf by leaf
     std::vector<FloatLeaf*> outLeaves(cand.size(), nullptr);
+    std::vector<Vec3fLeaf*> cpLeaves(wantClosest ? cand.size() : 0, nullptr);
+    std::vector<Int32Leaf*> triLeaves(wantClosest ? cand.size() : 0, nullptr);
     tbb::enumerable_thread_specific<Scratch> scratchTls;
     std::atomic<bool> stop{false};
     std::atomic<size_t> done{0};
@@ -510,7 +525,9 @@ openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh, const MeshToLev
     tbb::parallel_for(tbb::blocked_range<size_t>(0, cand.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
         if (stop.load(std::memory_order_relaxed)) return;
         Scratch& s = scratchTls.local();
-        for (size_t i = r.begin(); i != r.end(); ++i) outLeaves[i] = computeLeaf(ctx, cand[i], s);
+        for (size_t i = r.begin(); i != r.end(); ++i)
+            outLeaves[i] = computeLeaf(ctx, cand[i], s, wantClosest ? &cpLeaves[i] : nullptr,
+                                       wantClosest ? &triLeaves[i] : nullptr);
         const size_t d = done.fetch_add(r.size()) + r.size();
         if (interrupter && (d / reportEvery) != ((d - r.size()) / reportEvery)) {
             if (interrupter->wasInterrupted(20 + int(75.0 * double(d) / double(cand.size())))) stop = true;
@@ -518,6 +535,8 @@ openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh, const MeshToLev
     });
     if (stop) {
         for (FloatLeaf* l : outLeaves) delete l;
+        for (Vec3fLeaf* l : cpLeaves) delete l;
+        for (Int32Leaf* l : triLeaves) delete l;
         throw InterruptedError("interrupted while computing distances");
     }
     for (const Scratch& s : scratchTls) {
@@ -539,10 +558,41 @@ openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh, const MeshToLev
     grid->setTransform(openvdb::math::Transform::createLinearTransform(h));
     grid->setGridClass(openvdb::GRID_LEVEL_SET);
     grid->setName(options.gridName);
+    LevelSetWithClosestPoints result;
+    result.levelSet = grid;
+    if (wantClosest) {
+        auto cpTree = std::make_shared<openvdb::Vec3fTree>(openvdb::Vec3f(0.0f));
+        for (Vec3fLeaf* l : cpLeaves)
+            if (l) cpTree->addLeaf(l);
+        result.closestPoints = openvdb::Vec3fGrid::create(cpTree);
+        result.closestPoints->setTransform(grid->transform().copy());
+        result.closestPoints->setName(options.gridName + "_closest");
+        result.closestPoints->setVectorType(openvdb::VEC_CONTRAVARIANT_RELATIVE);
+        auto triTree = std::make_shared<openvdb::Int32Tree>(-1);
+        for (Int32Leaf* l : triLeaves)
+            if (l) triTree->addLeaf(l);
+        result.closestTriangles = openvdb::Int32Grid::create(triTree);
+        result.closestTriangles->setTransform(grid->transform().copy());
+        result.closestTriangles->setName(options.gridName + "_triangle");
+    }
     stats.secondsFinish = secondsSince(t2);
     if (interrupter) { interrupter->wasInterrupted(100); interrupter->end(); }
     if (statsOut) *statsOut = stats;
-    return grid;
+    return result;
+}
+} // namespace
+
+openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh, const MeshToLevelSetOptions& options,
+                                       MeshToLevelSetStats* statsOut)
+{
+    return convert(mesh, options, statsOut, false).levelSet;
+}
+
+LevelSetWithClosestPoints meshToLevelSetWithClosestPoints(const TriangleMesh& mesh,
+                                                          const MeshToLevelSetOptions& options,
+                                                          MeshToLevelSetStats* statsOut)
+{
+    return convert(mesh, options, statsOut, true);
 }
 
 } // namespace levelforge

@@ -18,6 +18,7 @@ namespace levelforge::ops {
 namespace {
 
 const char* const kMethod = "zhao2005-fast-sweeping";
+const char* const kVectorMethod = "satherley-jones-vcvdt8";
 
 std::string fmt(const char* format, double v)
 {
@@ -72,6 +73,8 @@ void cookExpand(OperatorArgs& args)
     opt.boundingBoxMargin = args.getFloat("bbox-margin");
     opt.tolerance = args.getFloat("tolerance");
     opt.maxIterations = static_cast<int>(args.getInt("max-iterations"));
+    const bool vector = args.getString("method") == "vector";
+    opt.method = vector ? ExpansionMethod::Vector : ExpansionMethod::Sweep;
     CliProgress progress(10, !args.getBool("quiet"));
     opt.interrupter = &progress;
 
@@ -86,7 +89,7 @@ void cookExpand(OperatorArgs& args)
     const bool box = opt.domain == ExpansionDomain::BoundingBox;
     const double ext = box ? bg : opt.exteriorWidth * toVoxels;
     const double in = (box || opt.fillInterior) ? bg : opt.interiorWidth * toVoxels;
-    stampLevelSetMetadata(*out, ext, in, input, kMethod);
+    stampLevelSetMetadata(*out, ext, in, input, vector ? kVectorMethod : kMethod);
     openvdb::GridPtrVec result;
     for (const auto& g : *grids) result.push_back(g == grid ? out : g);
     openvdb::MetaMap fileMeta;
@@ -99,15 +102,21 @@ void cookExpand(OperatorArgs& args)
        << " voxels in the input band, " << withThousands(out->activeVoxelCount())
        << " active voxels now\n"
        << "  band: " << fmt("%g", ext) << " voxels outside, " << fmt("%g", in)
-       << " voxels inside (plus a coverage margin, see docs/expansion.md)\n"
-       << "  sweeps: " << st.iterations << " rounds of 8, last max change "
-       << fmt("%.3g", st.maxChange) << " voxels" << (st.converged ? "" : " (not converged)")
-       << "\n"
-       << "  time: " << fmt("%.2f", seconds) << " s expansion (topology "
-       << fmt("%.2f", st.secondsTopology) << ", sweeps " << fmt("%.2f", st.secondsSweep)
+       << " voxels inside (plus a coverage margin, see docs/expansion.md)\n";
+    if (vector) {
+        os << "  vectors: 8-pass VCVDT from " << withThousands(st.frozenVoxels)
+           << " shell voxels (closest points estimated from phi and grad phi), "
+           << withThousands(st.unreachedVoxels) << " unreached\n";
+    } else {
+        os << "  sweeps: " << st.iterations << " rounds of 8, last max change "
+           << fmt("%.3g", st.maxChange) << " voxels" << (st.converged ? "" : " (not converged)")
+           << "\n";
+    }
+    os << "  time: " << fmt("%.2f", seconds) << " s expansion (topology "
+       << fmt("%.2f", st.secondsTopology) << (vector ? ", vectors " : ", sweeps ") << fmt("%.2f", st.secondsSweep)
        << "), " << fmt("%.2f", std::chrono::duration<double>(Clock::now() - t0).count())
        << " s total\n";
-    if (!st.converged) {
+    if (!vector && !st.converged) {
         args.err() << "levelforge: warning: the sweeps did not converge to " << opt.tolerance
                    << " voxels in " << opt.maxIterations << " rounds\n";
     }
@@ -117,15 +126,17 @@ void cookExpand(OperatorArgs& args)
 
 LEVELFORGE_REGISTER_OPERATOR(
     OperatorSpec("expand",
-                 "Widen the band of a level set by fast sweeping (like VDB Activate SDF / "
-                 "VDB Reshape SDF dilate)")
+                 "Widen the band of a level set by fast sweeping or vector propagation (like VDB "
+                 "Activate SDF / VDB Reshape SDF dilate)")
         .description(
             "Reads a .vdb level set, keeps its band as the exact boundary condition, activates\n"
             "every voxel whose distance is within the new widths (Euclidean-complete), gives\n"
             "the new voxels their sign, and solves |grad phi| = 1 on them by fast sweeping\n"
-            "(Zhao 2005; first-order Godunov, 8 orderings, sparse VDB topology only). Other\n"
-            "grids of the file are copied unchanged. Values of new voxels are first-order\n"
-            "approximations of the distance (see docs/expansion.md).")
+            "(Zhao 2005; first-order Godunov, 8 orderings, sparse VDB topology only) or, with\n"
+            "--method vector, propagates closest-point vectors by the 8-pass VCVDT\n"
+            "(Satherley-Jones 2001) over the same sparse topology. Other grids of the file are\n"
+            "copied unchanged. Values of new voxels approximate the distance (see\n"
+            "docs/expansion.md).")
         .input("input", ".vdb file with a level set")
         .output("output", ".vdb file to write")
         .param(Param::floating("exterior-width", "Exterior Band",
@@ -154,7 +165,10 @@ LEVELFORGE_REGISTER_OPERATOR(
                    .defaultValue(10.0)
                    .range(0.0, 100000.0))
         .param(Param::choice("method", "Method",
-                             "Expansion method: sweep = fast sweeping (Zhao)", {"sweep"})
+                             "Expansion method: sweep = fast sweeping (Zhao, first-order); vector = "
+                             "closest-point vectors by the 8-pass VCVDT (Satherley-Jones), shell "
+                             "vectors estimated from phi and grad phi",
+                             {"sweep", "vector"})
                    .defaultValue("sweep"))
         .param(Param::floating("tolerance", "Tolerance",
                                "Stop when a round of 8 sweeps changes no value by more than "
@@ -171,6 +185,7 @@ LEVELFORGE_REGISTER_OPERATOR(
         .example("levelforge expand bunny.vdb bunny_wide.vdb --exterior-width 20 "
                  "--interior-width 20")
         .example("levelforge expand bunny.vdb bunny_solid.vdb --exterior-width 5 --fill-interior")
+        .example("levelforge expand bunny.vdb bunny_wide.vdb --exterior-width 60 --method vector")
         .cook(cookExpand));
 
 } // namespace levelforge::ops

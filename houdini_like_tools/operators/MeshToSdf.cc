@@ -164,7 +164,9 @@ void cookMeshToSdf(OperatorArgs& args)
     options.interrupter = &progress;
 
     // --expansion sweep: exact band of --exact-band voxels, then fast sweeping to the full band.
-    const bool sweep = args.getString("expansion") == "sweep";
+    const std::string expansion = args.getString("expansion");
+    const bool vector = expansion == "vector";
+    const bool sweep = expansion == "sweep" || vector;
     const float exteriorTarget = options.exteriorWidth, interiorTarget = options.interiorWidth;
     if (sweep) {
         const float exact = static_cast<float>(args.getFloat("exact-band"));
@@ -176,8 +178,19 @@ void cookMeshToSdf(OperatorArgs& args)
     const auto t1 = Clock::now();
     const bool scan = args.getString("method") == "scan"; // issue 5
     TetScanStats scanStats;
-    openvdb::FloatGrid::Ptr grid = scan ? meshToLevelSetScan(mesh, scanOptionsFrom(options, args.getString("shell")), &scanStats)
-                                        : meshToLevelSet(mesh, options, &stats);
+    openvdb::FloatGrid::Ptr grid;
+    openvdb::Vec3fGrid::Ptr closest; // exact closest points of the band, for --expansion vector
+    openvdb::Int32Grid::Ptr closestTriangles;
+    if (scan) {
+        grid = meshToLevelSetScan(mesh, scanOptionsFrom(options, args.getString("shell")), &scanStats);
+    } else if (vector) {
+        LevelSetWithClosestPoints r = meshToLevelSetWithClosestPoints(mesh, options, &stats);
+        grid = r.levelSet;
+        closest = r.closestPoints;
+        closestTriangles = r.closestTriangles;
+    } else {
+        grid = meshToLevelSet(mesh, options, &stats);
+    }
     if (sweep) {
         ExpandLevelSetOptions expand;
         expand.exteriorWidth = exteriorTarget;
@@ -185,6 +198,14 @@ void cookMeshToSdf(OperatorArgs& args)
         expand.inputExteriorWidth = options.exteriorWidth;
         expand.inputInteriorWidth = options.interiorWidth;
         expand.interrupter = &progress;
+        if (vector) {
+            expand.method = ExpansionMethod::Vector;
+            if (closest) expand.closestPoints = &closest->tree();
+            if (closestTriangles) {
+                expand.closestTriangles = &closestTriangles->tree();
+                expand.mesh = &mesh;
+            }
+        }
         grid = expandLevelSet(*grid, expand);
         options.exteriorWidth = exteriorTarget;
         options.interiorWidth = interiorTarget;
@@ -193,8 +214,8 @@ void cookMeshToSdf(OperatorArgs& args)
 
     stampLevelSetMetadata(*grid, options.exteriorWidth, options.interiorWidth,
                           mesh.source.empty() ? input : mesh.source,
-                          sweep ? (scan ? "erleben-dohlmann-t4-scan+zhao2005-fast-sweeping"
-                                        : "chang2008-exact-band+zhao2005-fast-sweeping")
+                          sweep ? (std::string(scan ? "erleben-dohlmann-t4-scan" : "chang2008-exact-band") +
+                                   (vector ? "+satherley-jones-vcvdt8" : "+zhao2005-fast-sweeping"))
                                 : (scan ? "erleben-dohlmann-t4-scan" : kMethod));
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
@@ -248,8 +269,10 @@ LEVELFORGE_REGISTER_OPERATOR(
                    .range(0.0, 1000.0, Bound::Exclusive, Bound::Inclusive))
         .param(Param::choice("expansion", "Expansion",
                              "none/exact: exact distances in the whole band; sweep: exact in "
-                             "--exact-band, then fast sweeping (first-order) to the full band",
-                             {"none", "sweep", "exact"})
+                             "--exact-band, then fast sweeping (first-order) to the full band; "
+                             "vector: exact in --exact-band with its closest points, then the "
+                             "8-pass VCVDT (Satherley-Jones) to the full band",
+                             {"none", "sweep", "vector", "exact"})
                    .defaultValue("none"))
         .param(Param::floating("exact-band", "Exact Band Voxels",
                                "Half-width of the exact band computed before sweeping, in voxels")
@@ -274,6 +297,7 @@ LEVELFORGE_REGISTER_OPERATOR(
         .example("levelforge mesh-to-sdf builtin:torus-knot knot.vdb --voxel-count 200 "
                  "--exterior-band 5 --interior-band 5")
         .example("levelforge mesh-to-sdf bunny.obj bunny.vdb --exterior-band 60 --expansion sweep")
+        .example("levelforge mesh-to-sdf bunny.obj bunny.vdb --exterior-band 60 --expansion vector")
         .cook(cookMeshToSdf));
 
 } // namespace levelforge::ops

@@ -41,12 +41,21 @@
 // meshToLevelSet() with the wide band directly (`--expansion exact`).
 #pragma once
 
+#include <levelforge/TriangleMesh.h>
+
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
 
 #include <cstdint>
 
 namespace levelforge {
+
+/// How the new voxels get their values.
+enum class ExpansionMethod
+{
+    Sweep, ///< fast sweeping: first-order Godunov solution of |∇φ| = 1 (this header)
+    Vector ///< closest-point vectors propagated by the sparse 8-pass VCVDT (VectorExpansion.h)
+};
 
 /// What the expanded level set covers.
 enum class ExpansionDomain
@@ -64,6 +73,18 @@ enum class WidthUnits
 
 struct ExpandLevelSetOptions
 {
+    /// Sweep (Zhao's fast sweeping) or Vector (Satherley–Jones VCVDT over VDB leaves).
+    ExpansionMethod method = ExpansionMethod::Sweep;
+    /// Vector method only (optional, not owned): for the voxels of the input band, the offset
+    /// from the voxel centre to the closest surface point, in voxels — as made by
+    /// meshToLevelSetWithClosestPoints(). Without it the offsets are estimated from φ and ∇φ.
+    const openvdb::Vec3fTree* closestPoints = nullptr;
+    /// Vector method only (optional, with closestPoints and mesh; not owned): the closest
+    /// triangle of every input band voxel (meshToLevelSetWithClosestPoints()). The triangle is
+    /// carried with the vector, and each new voxel finally gets its exact distance to that
+    /// triangle (never more than the propagated distance, never less than the true one).
+    const openvdb::Int32Tree* closestTriangles = nullptr;
+    const TriangleMesh* mesh = nullptr;
     /// Target half-width of the band outside the surface (units: `units`); Houdini's
     /// VDB Activate SDF "Exterior Band". Must be finite and > 0.
     double exteriorWidth = 20.0;
@@ -79,7 +100,8 @@ struct ExpandLevelSetOptions
     /// the target is lost to first-order overestimation: coverageMargin voxels plus
     /// coverageMarginPerVoxel times the swept distance (target - input width, voxels). The
     /// overestimation grows with the distance swept (measured: up to 1.5 voxels after sweeping
-    /// 57 voxels on the Armadillo); both >= 0.
+    /// 57 voxels on the Armadillo); both >= 0. The Vector method's error does not grow with the
+    /// distance, so it uses coverageMargin only.
     double coverageMargin = 1.0;
     double coverageMarginPerVoxel = 0.025;
     /// Half-widths of the input band, in voxels, where it is exact and complete; 0 = read the
@@ -112,6 +134,15 @@ struct ExpandLevelSetStats
     double maxChange = 0.0;          ///< largest change during the last round, voxels
     bool converged = false;          ///< last round changed nothing by more than the tolerance
     double secondsTopology = 0, secondsSweep = 0, secondsFinish = 0;
+    ExpansionMethod method = ExpansionMethod::Sweep;
+    uint64_t estimatedVectors = 0;   ///< Vector: shell vectors estimated from φ and ∇φ
+    uint64_t unreachedVoxels = 0;    ///< Vector: candidates no vector reached (dropped)
+    uint64_t refinedVoxels = 0;      ///< Vector: new voxels given the exact distance to their triangle
+    uint64_t walkSteps = 0;          ///< Vector: greedy steps to closer edge-adjacent triangles
+    uint64_t refineEvaluations = 0;  ///< Vector: exact point–triangle distances of the refinement
+    int refineRounds = 0;            ///< Vector: neighbour rounds of the refinement
+    /// Vector: set-up (shell vectors), the 8 raster passes (one thread), write-back + refinement.
+    double secondsVectorSetup = 0, secondsVectorPasses = 0, secondsVectorFinish = 0;
 };
 
 /// Returns a new level set: `input`'s band widened (or narrowed) as `options` say; see the file

@@ -84,4 +84,21 @@ openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh,
                                        const MeshToLevelSetOptions& options = {},
                                        MeshToLevelSetStats* stats = nullptr);
 
+/// A level set and, for each of its active voxels, the offset from the voxel centre to the
+/// closest point of the mesh (index space, voxel units; the point of the triangle that decided
+/// the exact distance) and that triangle's index in mesh.triangles. Both grids have the same
+/// transform and active topology as the level set.
+struct LevelSetWithClosestPoints
+{
+    openvdb::FloatGrid::Ptr levelSet;
+    openvdb::Vec3fGrid::Ptr closestPoints;
+    openvdb::Int32Grid::Ptr closestTriangles;
+};
+
+/// meshToLevelSet() that also returns the closest-point offsets — the exact shell of vectors
+/// that the Vector expansion (VectorExpansion.h, Satherley–Jones §4.3) propagates.
+LevelSetWithClosestPoints meshToLevelSetWithClosestPoints(const TriangleMesh& mesh,
+                                                          const MeshToLevelSetOptions& options = {},
+                                                          MeshToLevelSetStats* stats = nullptr);
+
 } // namespace levelforge
