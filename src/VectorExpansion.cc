@@ -400,9 +400,22 @@ public:
                         best2 = closest(p, c.tri).distanceSqr;
                         bestT = c.tri;
                     } else {
+                        // the triangles of all 26 neighbours (each distinct one once)
+                        int32_t tried[27];
+                        int nTried = 0;
+                        tried[nTried++] = c.tri;
                         tryFrom(p, c.tri, best2, bestT, steps);
-                        for (int q = 0; q < 6; ++q)
-                            if (nbs[q] && nbs[q]->tri != c.tri) tryFrom(p, nbs[q]->tri, best2, bestT, steps);
+                        for (int dz = -1; dz <= 1; ++dz)
+                            for (int dy = -1; dy <= 1; ++dy)
+                                for (int dx = -1; dx <= 1; ++dx) {
+                                    const Cell* nb = cellAt(int32_t(li), i + dx, j + dy, k + dz);
+                                    if (!nb || nb->tri < 0) continue;
+                                    bool seen = false;
+                                    for (int q = 0; q < nTried && !seen; ++q) seen = tried[q] == nb->tri;
+                                    if (seen) continue;
+                                    tried[nTried++] = nb->tri;
+                                    tryFrom(p, nb->tri, best2, bestT, steps);
+                                }
                     }
                     mRefTri[idx] = bestT;
                     mRefD2[idx] = best2;
