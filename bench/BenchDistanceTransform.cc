@@ -11,7 +11,7 @@
 // at the paper's 39.268); chess_pawn.stl voxelized at 60^3 (inside = the sign of the exact
 // reference at each voxel centre, ExactReference.h); a --volume scalar file thresholded at
 // --iso (f >= iso is inside, Eq. 2) when given; the 256^3 sphere for throughput only.
-// Prints markdown (docs/bench-dt.md). Times are the best of --repeats runs.
+// Prints markdown (docs/benchmarks.md, "Distance transforms on dense volumes"). Times are the best of --repeats runs.
 #include <levelforge/ChamferDistanceTransform.h>
 #include <levelforge/ExactDistanceTransform.h>
 #include <levelforge/ExactReference.h>

@@ -45,7 +45,7 @@
 // to the seed set; they overestimate where a voxel's closest seed cannot be reached through
 // the masks (Voronoi-corner configurations, Eq. 11; one-voxel-thin diagonal Voronoi tiles that
 // the 4-neighbour passes cannot enter; the two-slice wake). Measured on the 80^3 sphere
-// (docs/bench-dt.md): average error per voxel 0.0007 (VCVDT8), 0.0008 (EVDT full grid),
+// (docs/benchmarks.md, "Distance transforms on dense volumes"): average error per voxel 0.0007 (VCVDT8), 0.0008 (EVDT full grid),
 // 0.0017 (EVDT), 0.0022 (VCVDT4); VCVDT8 errors within +-0.27 voxel. For exact distances to
 // feature voxel centres use exactDistanceTransform() (ExactDistanceTransform.h).
 //
@@ -62,7 +62,7 @@
 // not TBB tasks, so the spin-waits cannot deadlock. The pipeline synchronises once per row chunk
 // and once per pass: it can only pay on a machine whose cores are free, and loses badly when
 // the cores are oversubscribed (a preempted lane stalls the others: 3x slower than serial on
-// our shared 2-core machine, docs/bench-dt.md). It is therefore opt-in
+// our shared 2-core machine, docs/benchmarks.md, "Distance transforms on dense volumes"). It is therefore opt-in
 // (VectorTransformOptions::threads); the default is one lane. EVDT's row-interleaved passes (F2/B2) leave
 // nothing to pipeline; EVDT and EVDTFullGrid run on one lane.
 #pragma once
@@ -107,7 +107,7 @@ struct VectorTransformOptions
     /// capped by tbb::global_control, when a slice has at least 128 x 128 voxels, else 1);
     /// n > 1 = at most n. The result does not depend on it. Serial is the default because the
     /// wavefront, which synchronises once per row chunk, only pays on otherwise idle cores: on
-    /// our shared 2-core machine it was 3x slower than serial (docs/bench-dt.md).
+    /// our shared 2-core machine it was 3x slower than serial (docs/benchmarks.md, "Distance transforms on dense volumes").
     int threads = 1;
 };
 
