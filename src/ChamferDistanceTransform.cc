@@ -20,31 +20,6 @@ namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-template<typename T>
-void validate(const DenseVolume<T>& v, const char* what)
-{
-    const auto& d = v.dims;
-    if (d.x() <= 0 || d.y() <= 0 || d.z() <= 0) {
-        std::ostringstream ss;
-        ss << what << ": empty volume (dims " << d.x() << " x " << d.y() << " x " << d.z() << ")";
-        throw InvalidArgumentError(ss.str());
-    }
-    if (v.data.size() != v.voxelCount()) {
-        std::ostringstream ss;
-        ss << what << ": data holds " << v.data.size() << " values but dims " << d.x() << " x " << d.y()
-           << " x " << d.z() << " need " << v.voxelCount();
-        throw InvalidArgumentError(ss.str());
-    }
-    for (int a = 0; a < 3; ++a) {
-        const double s = v.spacing[a];
-        if (!(std::isfinite(s) && s > 0.0) || !std::isfinite(float(s)) || float(s) <= 0.0f) {
-            std::ostringstream ss;
-            ss << what << ": voxel spacing along " << "xyz"[a] << " is " << s
-               << " (must be finite and > 0, world units)";
-            throw InvalidArgumentError(ss.str());
-        }
-    }
-}
 
 template<typename A, typename B>
 void requireSameDims(const DenseVolume<A>& a, const DenseVolume<B>& b, const char* what)
@@ -157,7 +132,7 @@ void chamferSpan(float* D, const openvdb::Coord& dims, const HalfMask& h, int z,
 
 MaskVolume insideMask(const ScalarVolume& field, float iso)
 {
-    validate(field, "insideMask");
+    requireValidVolume(field, "insideMask");
     if (std::isnan(iso)) throw InvalidArgumentError("insideMask: iso value is NaN");
     MaskVolume m = like<uint8_t>(field);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, m.data.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
@@ -168,7 +143,7 @@ MaskVolume insideMask(const ScalarVolume& field, float iso)
 
 MaskVolume transverseFeatures(const MaskVolume& inside)
 {
-    validate(inside, "transverseFeatures");
+    requireValidVolume(inside, "transverseFeatures");
     MaskVolume f = like<uint8_t>(inside);
     forEachVoxel(inside.dims, [&](int i, int j, int k) {
         const size_t idx = inside.index(i, j, k);
@@ -184,8 +159,8 @@ MaskVolume transverseFeatures(const MaskVolume& inside)
 
 DenseVolume<int8_t> classification(const MaskVolume& inside, const MaskVolume& features)
 {
-    validate(inside, "classification");
-    validate(features, "classification");
+    requireValidVolume(inside, "classification");
+    requireValidVolume(features, "classification");
     requireSameDims(inside, features, "classification");
     DenseVolume<int8_t> c = like<int8_t>(inside);
     forEachVoxel(inside.dims, [&](int i, int j, int k) {
@@ -200,8 +175,8 @@ DenseVolume<int8_t> classification(const MaskVolume& inside, const MaskVolume& f
 
 ScalarVolume applySign(const ScalarVolume& unsignedDistance, const DenseVolume<int8_t>& sign)
 {
-    validate(unsignedDistance, "applySign");
-    validate(sign, "applySign");
+    requireValidVolume(unsignedDistance, "applySign");
+    requireValidVolume(sign, "applySign");
     requireSameDims(unsignedDistance, sign, "applySign");
     ScalarVolume out = like<float>(unsignedDistance);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, out.data.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
@@ -271,7 +246,7 @@ double stepWeight(ChamferMetric metric, const Step& s, const openvdb::Vec3d& spa
 
 ScalarVolume chamferDistanceTransform(const MaskVolume& features, ChamferMetric metric, const ChamferOptions& options)
 {
-    validate(features, "chamferDistanceTransform");
+    requireValidVolume(features, "chamferDistanceTransform");
     ScalarVolume D = like<float>(features);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, D.data.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) D.data[i] = features.data[i] ? 0.0f : kInf;

@@ -21,31 +21,6 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr double kInfD = std::numeric_limits<double>::infinity();
 
-template<typename T>
-void validate(const DenseVolume<T>& v, const char* what)
-{
-    const auto& d = v.dims;
-    if (d.x() <= 0 || d.y() <= 0 || d.z() <= 0) {
-        std::ostringstream ss;
-        ss << what << ": empty volume (dims " << d.x() << " x " << d.y() << " x " << d.z() << ")";
-        throw InvalidArgumentError(ss.str());
-    }
-    if (v.data.size() != v.voxelCount()) {
-        std::ostringstream ss;
-        ss << what << ": data holds " << v.data.size() << " values but dims " << d.x() << " x " << d.y()
-           << " x " << d.z() << " need " << v.voxelCount();
-        throw InvalidArgumentError(ss.str());
-    }
-    for (int a = 0; a < 3; ++a) {
-        const double s = v.spacing[a];
-        if (!(std::isfinite(s) && s > 0.0)) {
-            std::ostringstream ss;
-            ss << what << ": voxel spacing along " << "xyz"[a] << " is " << s
-               << " (must be finite and > 0, world units)";
-            throw InvalidArgumentError(ss.str());
-        }
-    }
-}
 
 /// Scratch for one 1-D lower envelope of n parabolas.
 struct Envelope
@@ -98,7 +73,7 @@ struct Envelope
 
 ScalarVolume exactDistanceTransform(const MaskVolume& features, const ExactTransformOptions& options)
 {
-    validate(features, "exactDistanceTransform");
+    requireValidVolume(features, "exactDistanceTransform");
     const int nx = features.dims.x(), ny = features.dims.y(), nz = features.dims.z();
     const size_t nxy = size_t(nx) * size_t(ny);
     const double sx2 = features.spacing[0] * features.spacing[0];
@@ -176,7 +151,7 @@ ScalarVolume exactDistanceTransform(const MaskVolume& features, const ExactTrans
 
 ScalarVolume bruteForceDistanceTransform(const MaskVolume& features)
 {
-    validate(features, "bruteForceDistanceTransform");
+    requireValidVolume(features, "bruteForceDistanceTransform");
     std::vector<openvdb::Vec3d> pts;
     for (int k = 0; k < features.dims.z(); ++k)
         for (int j = 0; j < features.dims.y(); ++j)
@@ -259,7 +234,7 @@ DistanceTransformComparison compareDistanceFields(const ScalarVolume& computed, 
 std::vector<DistanceTransformComparison> distanceTransformReport(const MaskVolume& inside,
                                                                  const DistanceTransformReportOptions& options)
 {
-    validate(inside, "distanceTransformReport");
+    requireValidVolume(inside, "distanceTransformReport");
     using Clock = std::chrono::steady_clock;
     const int repeats = std::max(1, options.repeats);
     const MaskVolume features = transverseFeatures(inside);

@@ -3,6 +3,8 @@
 
 #include <levelforge/Exceptions.h>
 
+#include "MessageText.h"
+
 #include <OpenMesh/Core/IO/IOManager.hh>
 #include <OpenMesh/Core/IO/importer/BaseImporter.hh>
 #include <OpenMesh/Core/IO/reader/OBJReader.hh>
@@ -44,18 +46,6 @@ std::string lowerExtension(const std::string& path)
     return ext;
 }
 
-std::string quoted(std::string_view s)
-{
-    constexpr size_t kMax = 40;
-    std::string out = "'";
-    for (size_t i = 0; i < s.size() && i < kMax; ++i) {
-        const unsigned char c = static_cast<unsigned char>(s[i]);
-        out += (c >= 32 && c < 127) ? char(c) : '?';
-    }
-    if (s.size() > kMax) out += "...";
-    out += "'";
-    return out;
-}
 
 std::string formatDouble(double v)
 {
@@ -132,13 +122,13 @@ NumberStatus parseCoordinate(std::string_view tok, double& v)
 std::string describeCoordinateProblem(NumberStatus st, std::string_view tok)
 {
     switch (st) {
-    case NumberStatus::NotANumber: return "cannot parse coordinate " + quoted(tok);
-    case NumberStatus::NonFinite: return "non-finite coordinate " + quoted(tok);
+    case NumberStatus::NotANumber: return "cannot parse coordinate " + message_internal::quotedExcerpt(tok);
+    case NumberStatus::NonFinite: return "non-finite coordinate " + message_internal::quotedExcerpt(tok);
     case NumberStatus::OutOfFloatRange:
-        return "coordinate " + quoted(tok) + " is beyond the single-precision range";
+        return "coordinate " + message_internal::quotedExcerpt(tok) + " is beyond the single-precision range";
     case NumberStatus::Ok: break;
     }
-    return "bad coordinate " + quoted(tok);
+    return "bad coordinate " + message_internal::quotedExcerpt(tok);
 }
 
 /// Parses a whole token as an integer.
@@ -326,7 +316,7 @@ void prescanObj(const std::string& path, Prescan& out)
                 const auto r = std::from_chars(b, e, idx);
                 if (idxPart.empty() || r.ec != std::errc() || r.ptr == b) {
                     throwInvalid(path, reader.lineNumber(), "face " + std::to_string(faceCount) +
-                        ": cannot parse corner " + quoted(tok));
+                        ": cannot parse corner " + message_internal::quotedExcerpt(tok));
                 }
                 long long resolved = idx;
                 if (idx < 0) resolved = (long long)vertexCount + idx + 1; // relative index
@@ -436,7 +426,7 @@ void prescanOff(const std::string& path, Prescan& out)
     if (p.substr(0, 1) == "4") { higherDim = true; p.remove_prefix(1); }
     if (p.substr(0, 1) == "n") { higherDim = true; p.remove_prefix(1); }
     if (p.substr(0, 3) != "OFF") {
-        throwInvalid(path, 1, "not an OFF file: the first line is " + quoted(header) +
+        throwInvalid(path, 1, "not an OFF file: the first line is " + message_internal::quotedExcerpt(header) +
             ", expected 'OFF' (optionally prefixed by ST, C, N)");
     }
     p.remove_prefix(3);
@@ -448,7 +438,7 @@ void prescanOff(const std::string& path, Prescan& out)
     }
     if (!extra.empty()) {
         throwInvalid(path, 1, "the OFF header line must hold only the keyword (OpenMesh reads the "
-            "counts from the next line), found " + quoted(header));
+            "counts from the next line), found " + message_internal::quotedExcerpt(header));
     }
     if (higherDim) return; // let OpenMesh decide about 4OFF / nOFF
     (void)hasTex;
@@ -461,7 +451,7 @@ void prescanOff(const std::string& path, Prescan& out)
         if (!tokens.next(tok)) throwInvalid(path, tokens.line(), std::string("missing ") + countNames[i]);
         if (!parseInteger(tok, counts[i])) {
             throwInvalid(path, tokens.line(), std::string("cannot parse the ") + countNames[i] +
-                " " + quoted(tok) + (tok[0] == '#' ? " (OpenMesh's OFF reader does not accept "
+                " " + message_internal::quotedExcerpt(tok) + (tok[0] == '#' ? " (OpenMesh's OFF reader does not accept "
                 "comments)" : ""));
         }
     }
@@ -483,7 +473,7 @@ void prescanOff(const std::string& path, Prescan& out)
             const NumberStatus st = parseCoordinate(tok, value);
             if (st != NumberStatus::Ok) {
                 throwInvalid(path, tokens.line(), "vertex " + std::to_string(v) + ": " +
-                    (k < 3 ? describeCoordinateProblem(st, tok) : "cannot parse normal " + quoted(tok)));
+                    (k < 3 ? describeCoordinateProblem(st, tok) : "cannot parse normal " + message_internal::quotedExcerpt(tok)));
             }
             if (k < 3) q[k] = value;
         }
@@ -497,7 +487,7 @@ void prescanOff(const std::string& path, Prescan& out)
         uint32_t corners = 0;
         if (!parseInteger(tok, corners)) {
             throwInvalid(path, tokens.line(), "face " + std::to_string(f) +
-                ": cannot parse the corner count " + quoted(tok));
+                ": cannot parse the corner count " + message_internal::quotedExcerpt(tok));
         }
         for (uint32_t c = 0; c < corners; ++c) {
             if (!tokens.next(tok)) {
@@ -506,7 +496,7 @@ void prescanOff(const std::string& path, Prescan& out)
             long long idx = 0;
             if (!parseInteger(tok, idx)) {
                 throwInvalid(path, tokens.line(), "face " + std::to_string(f) +
-                    ": cannot parse vertex index " + quoted(tok));
+                    ": cannot parse vertex index " + message_internal::quotedExcerpt(tok));
             }
             if (idx < 0 || uint64_t(idx) >= nV) {
                 throwInvalid(path, tokens.line(), "face " + std::to_string(f) + ": vertex index " +
@@ -602,7 +592,7 @@ void prescanPly(const std::string& path, Prescan& out)
     std::string_view line, rest, tok;
     if (!reader.nextLine(line)) throwInvalid(path, 0, "the file is empty");
     if (trimmed(line) != "ply") {
-        throwInvalid(path, 1, "not a PLY file: the first line is " + quoted(trimmed(line)) +
+        throwInvalid(path, 1, "not a PLY file: the first line is " + message_internal::quotedExcerpt(trimmed(line)) +
             ", expected 'ply'");
     }
     PlyFormat format = PlyFormat::Ascii;
@@ -619,7 +609,7 @@ void prescanPly(const std::string& path, Prescan& out)
         while (n < 6 && nextToken(rest, t[n])) ++n;
         if (n == 6 || nextToken(rest, tok)) n = 7; // too many
         auto malformed = [&](const char* expected) {
-            throwInvalid(path, reader.lineNumber(), "malformed PLY header line " + quoted(trimmed(line)) +
+            throwInvalid(path, reader.lineNumber(), "malformed PLY header line " + message_internal::quotedExcerpt(trimmed(line)) +
                 ", expected '" + expected + "'");
         };
         if (t[0] == "end_header") {
@@ -635,7 +625,7 @@ void prescanPly(const std::string& path, Prescan& out)
             if (t[1] == "ascii") format = PlyFormat::Ascii;
             else if (t[1] == "binary_little_endian") format = PlyFormat::BinaryLE;
             else if (t[1] == "binary_big_endian") format = PlyFormat::BinaryBE;
-            else throwInvalid(path, reader.lineNumber(), "unknown PLY format " + quoted(t[1]));
+            else throwInvalid(path, reader.lineNumber(), "unknown PLY format " + message_internal::quotedExcerpt(t[1]));
             haveFormat = true;
         } else if (t[0] == "element") {
             PlyElement e;
@@ -659,21 +649,21 @@ void prescanPly(const std::string& path, Prescan& out)
                 if (prop.countType == PlyType::Invalid || prop.type == PlyType::Invalid ||
                     prop.countType == PlyType::Float32 || prop.countType == PlyType::Float64) {
                     throwInvalid(path, reader.lineNumber(), "unsupported PLY list types in " +
-                        quoted(trimmed(line)));
+                        message_internal::quotedExcerpt(trimmed(line)));
                 }
             } else {
                 if (n != 3) malformed("property <type> <name>");
                 prop.type = plyType(t[1]);
                 prop.name = std::string(t[2]);
                 if (prop.type == PlyType::Invalid) {
-                    throwInvalid(path, reader.lineNumber(), "unknown PLY type " + quoted(t[1]));
+                    throwInvalid(path, reader.lineNumber(), "unknown PLY type " + message_internal::quotedExcerpt(t[1]));
                 }
             }
             elements.back().props.push_back(std::move(prop));
         } else {
             const bool number = std::isdigit(static_cast<unsigned char>(t[0][0])) || t[0][0] == '-' ||
                                 t[0][0] == '.';
-            throwInvalid(path, reader.lineNumber(), "unknown PLY header keyword " + quoted(t[0]) +
+            throwInvalid(path, reader.lineNumber(), "unknown PLY header keyword " + message_internal::quotedExcerpt(t[0]) +
                 (number ? " (is 'end_header' missing?)" : ""));
         }
     }
@@ -736,7 +726,7 @@ void prescanPly(const std::string& path, Prescan& out)
                         st = parseCoordinate(tok, value);
                         if (st == NumberStatus::NotANumber) {
                             throwInvalid(path, tokens.line(), what + " " + std::to_string(n) +
-                                ": cannot parse the value " + quoted(tok) + " of '" + p.name + "'");
+                                ": cannot parse the value " + message_internal::quotedExcerpt(tok) + " of '" + p.name + "'");
                         }
                     } else {
                         if (!readPlyBinary(reader, p.type, swap, value)) {

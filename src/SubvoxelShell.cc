@@ -23,21 +23,12 @@ using Clock = std::chrono::steady_clock;
 
 void checkVolume(const ScalarVolume& f)
 {
+    requireValidVolume(f, "sub-voxel shell");
     if (f.dims.x() < 2 || f.dims.y() < 2 || f.dims.z() < 2) {
         std::ostringstream os;
         os << "sub-voxel shell: the volume must have at least 2 samples along each axis, got "
            << f.dims.x() << "x" << f.dims.y() << "x" << f.dims.z();
         throw InvalidArgumentError(os.str());
-    }
-    if (f.data.size() != f.voxelCount())
-        throw InvalidArgumentError("sub-voxel shell: the volume holds " + std::to_string(f.data.size()) +
-                                   " samples, its dimensions say " + std::to_string(f.voxelCount()));
-    for (int a = 0; a < 3; ++a) {
-        if (!(f.spacing[a] > 0.0) || !std::isfinite(f.spacing[a])) {
-            std::ostringstream os;
-            os << "sub-voxel shell: voxel spacing must be finite and > 0, got " << f.spacing;
-            throw InvalidArgumentError(os.str());
-        }
     }
 }
 

@@ -203,31 +203,6 @@ struct Spacing
     float sx, sy, sz;
 };
 
-template<typename T>
-void validateVolume(const DenseVolume<T>& v, const char* what)
-{
-    const auto& d = v.dims;
-    if (d.x() <= 0 || d.y() <= 0 || d.z() <= 0) {
-        std::ostringstream ss;
-        ss << what << ": empty volume (dims " << d.x() << " x " << d.y() << " x " << d.z() << ")";
-        throw InvalidArgumentError(ss.str());
-    }
-    if (v.data.size() != v.voxelCount()) {
-        std::ostringstream ss;
-        ss << what << ": data holds " << v.data.size() << " values but dims " << d.x() << " x " << d.y()
-           << " x " << d.z() << " need " << v.voxelCount();
-        throw InvalidArgumentError(ss.str());
-    }
-    for (int a = 0; a < 3; ++a) {
-        const double s = v.spacing[a];
-        if (!(std::isfinite(s) && s > 0.0) || !std::isfinite(float(s)) || float(s) <= 0.0f) {
-            std::ostringstream ss;
-            ss << what << ": voxel spacing along " << "xyz"[a] << " is " << s
-               << " (must be finite and > 0, world units)";
-            throw InvalidArgumentError(ss.str());
-        }
-    }
-}
 
 /// One pass over x = x..xEnd (exclusive, step xs) of one row. `row` is updated in place;
 /// `prevRow` is the previous row in pass order (already final for this pass) or null;
@@ -493,7 +468,7 @@ const char* vectorTransformMethodName(VectorTransformMethod method)
 
 VectorVolume initVectorVolume(const MaskVolume& features)
 {
-    validateVolume(features, "initVectorVolume");
+    requireValidVolume(features, "initVectorVolume");
     VectorVolume v;
     v.dims = features.dims;
     v.spacing = features.spacing;
@@ -509,7 +484,7 @@ VectorVolume initVectorVolume(const MaskVolume& features)
 void vectorDistanceTransform(VectorVolume& vectors, const VectorTransformOptions& options,
                              VectorTransformStats* stats)
 {
-    validateVolume(vectors, "vectorDistanceTransform");
+    requireValidVolume(vectors, "vectorDistanceTransform");
     const auto t0 = std::chrono::steady_clock::now();
     const MethodDef& m = methodDef(options.method);
     const Spacing sp{float(vectors.spacing[0]), float(vectors.spacing[1]), float(vectors.spacing[2])};
@@ -534,7 +509,7 @@ void vectorDistanceTransform(VectorVolume& vectors, const VectorTransformOptions
 
 ScalarVolume vectorLength(const VectorVolume& vectors)
 {
-    validateVolume(vectors, "vectorLength");
+    requireValidVolume(vectors, "vectorLength");
     ScalarVolume out;
     out.dims = vectors.dims;
     out.spacing = vectors.spacing;

@@ -1,6 +1,8 @@
 // levelforge — scalar volume readers and writers (see VolumeIO.h and docs/volumes.md).
 #include <levelforge/VolumeIO.h>
 
+#include "MessageText.h"
+
 #include <levelforge/VdbIO.h>
 
 #include <openvdb/openvdb.h>
@@ -65,18 +67,6 @@ std::string formatCoord(const openvdb::Coord& c)
     return std::to_string(c.x()) + "x" + std::to_string(c.y()) + "x" + std::to_string(c.z());
 }
 
-/// Printable, shortened copy of header text for messages.
-std::string printable(std::string_view s)
-{
-    constexpr size_t kMax = 40;
-    std::string out = "'";
-    for (size_t i = 0; i < s.size() && i < kMax; ++i) {
-        const unsigned char c = static_cast<unsigned char>(s[i]);
-        out += (c >= 32 && c < 127) ? char(c) : '?';
-    }
-    if (s.size() > kMax) out += "...";
-    return out + "'";
-}
 
 [[noreturn]] void throwInvalid(const std::string& path, const std::string& what)
 {
@@ -464,7 +454,7 @@ ScalarVolume readNiftiStream(InputFile& in, const ReadVolumeOptions& options, Vo
                            "convert it to a single .nii file");
     }
     if (magic != std::string("n+1\0", 4)) {
-        throwInvalid(path, "magic " + printable(magic) + " is not the NIfTI-1 single-file magic 'n+1' "
+        throwInvalid(path, "magic " + message_internal::quotedExcerpt(magic) + " is not the NIfTI-1 single-file magic 'n+1' "
                                                       "(an Analyze 7.5 header?)");
     }
 
@@ -646,14 +636,14 @@ ScalarVolume readInrStream(InputFile& in, const ReadVolumeOptions& options, Volu
         const char* b = value.data();
         const char* e = b + value.size();
         const auto r = std::from_chars(b, e, v);
-        if (r.ec != std::errc() || b == e) throwInvalid(path, key + " = " + printable(value) + " is not an integer");
+        if (r.ec != std::errc() || b == e) throwInvalid(path, key + " = " + message_internal::quotedExcerpt(value) + " is not an integer");
         return v;
     };
     auto parseReal = [&](const std::string& key, const std::string& value) {
         char* e = nullptr;
         const double v = std::strtod(value.c_str(), &e);
         if (e == value.c_str() || !std::isfinite(v)) {
-            throwInvalid(path, key + " = " + printable(value) + " is not a finite number");
+            throwInvalid(path, key + " = " + message_internal::quotedExcerpt(value) + " is not a finite number");
         }
         return v;
     };
@@ -711,7 +701,7 @@ ScalarVolume readInrStream(InputFile& in, const ReadVolumeOptions& options, Volu
                                    " bits is not supported (8, 16, 32 or 64)");
         }
     } else {
-        throwInvalid(path, "unsupported TYPE " + printable(typeText) +
+        throwInvalid(path, "unsupported TYPE " + message_internal::quotedExcerpt(typeText) +
                                " (supported: 'unsigned fixed', 'signed fixed', 'float')");
     }
     bool big = false;
@@ -723,7 +713,7 @@ ScalarVolume readInrStream(InputFile& in, const ReadVolumeOptions& options, Volu
     } else if (cpu == "sun" || cpu == "sgi") {
         big = true;
     } else {
-        throwInvalid(path, "unknown CPU " + printable(cpu) + " (expected decm, pc, alpha, sun or sgi)");
+        throwInvalid(path, "unknown CPU " + message_internal::quotedExcerpt(cpu) + " (expected decm, pc, alpha, sun or sgi)");
     }
     info.bigEndian = big;
 

@@ -5,6 +5,8 @@
 
 #include <levelforge/Exceptions.h>
 
+#include "TestUtil.h"
+
 #include <gtest/gtest.h>
 
 #include <tbb/global_control.h>
@@ -24,14 +26,7 @@ constexpr ChamferMetric kMetrics[] = {ChamferMetric::CityBlock, ChamferMetric::C
                                       ChamferMetric::QuasiEuclidean3, ChamferMetric::Complete3,
                                       ChamferMetric::QuasiEuclidean5};
 
-MaskVolume randomMask(const openvdb::Coord& dims, double density, unsigned seed, const openvdb::Vec3d& spacing)
-{
-    MaskVolume m(dims, 0, spacing);
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    for (auto& v : m.data) v = u(rng) < density ? 1 : 0;
-    return m;
-}
+using levelforge_test::randomMask;
 
 /// Multi-source Dijkstra on the metric's neighbourhood graph (double precision).
 std::vector<double> dijkstra(const MaskVolume& f, ChamferMetric metric)

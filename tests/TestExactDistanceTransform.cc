@@ -4,6 +4,8 @@
 
 #include <levelforge/Exceptions.h>
 
+#include "TestUtil.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -14,14 +16,7 @@ using namespace levelforge;
 
 namespace {
 
-MaskVolume randomMask(const openvdb::Coord& dims, double density, unsigned seed, const openvdb::Vec3d& spacing)
-{
-    MaskVolume m(dims, 0, spacing);
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    for (auto& v : m.data) v = u(rng) < density ? 1 : 0;
-    return m;
-}
+using levelforge_test::randomMask;
 
 void expectNear(const ScalarVolume& a, const ScalarVolume& b, double relTol)
 {

@@ -3,8 +3,11 @@
 
 #include <gtest/gtest.h>
 
+#include <levelforge/DenseVolume.h>
+
 #include <cstdlib>
 #include <filesystem>
+#include <random>
 #include <string>
 
 namespace levelforge_test {
@@ -42,6 +45,17 @@ inline std::filesystem::path scratchDir(const std::string& name)
     std::filesystem::remove_all(p);
     std::filesystem::create_directories(p);
     return p;
+}
+
+/// A random binary mask (each voxel set with probability `density`), reproducible by `seed`.
+inline levelforge::MaskVolume randomMask(const openvdb::Coord& dims, double density, unsigned seed,
+                                         const openvdb::Vec3d& spacing)
+{
+    levelforge::MaskVolume m(dims, 0, spacing);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (auto& v : m.data) v = u(rng) < density ? 1 : 0;
+    return m;
 }
 
 } // namespace levelforge_test

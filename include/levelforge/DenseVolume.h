@@ -10,10 +10,14 @@
 // cell-centred index space with a scale transform (and of NIfTI/INR voxel coordinates).
 #pragma once
 
+#include <levelforge/Exceptions.h>
+
 #include <openvdb/Types.h> // openvdb::Coord, openvdb::Vec3d
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -57,6 +61,34 @@ struct DenseVolume
 
 using ScalarVolume = DenseVolume<float>;
 using MaskVolume = DenseVolume<uint8_t>;
+
+/// Throws InvalidArgumentError, naming `what`, unless the volume has dims > 0, exactly
+/// dims.x*dims.y*dims.z values and a finite spacing > 0 (also in single precision) on each axis.
+template<typename T>
+void requireValidVolume(const DenseVolume<T>& v, const char* what)
+{
+    const auto& d = v.dims;
+    if (d.x() <= 0 || d.y() <= 0 || d.z() <= 0) {
+        std::ostringstream ss;
+        ss << what << ": empty volume (dims " << d.x() << " x " << d.y() << " x " << d.z() << ")";
+        throw InvalidArgumentError(ss.str());
+    }
+    if (v.data.size() != v.voxelCount()) {
+        std::ostringstream ss;
+        ss << what << ": data holds " << v.data.size() << " values but dims " << d.x() << " x " << d.y()
+           << " x " << d.z() << " need " << v.voxelCount();
+        throw InvalidArgumentError(ss.str());
+    }
+    for (int a = 0; a < 3; ++a) {
+        const double s = v.spacing[a];
+        if (!(std::isfinite(s) && s > 0.0) || !std::isfinite(float(s)) || float(s) <= 0.0f) {
+            std::ostringstream ss;
+            ss << what << ": voxel spacing along " << "xyz"[a] << " is " << s
+               << " (must be finite and > 0, world units)";
+            throw InvalidArgumentError(ss.str());
+        }
+    }
+}
 
 /// The analytic field radius - |x - centre| (world units; positive inside the sphere) sampled on
 /// `dims` samples with `spacing` from the origin: a test volume whose iso-surface 0 is a sphere.
