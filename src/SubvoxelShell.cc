@@ -174,7 +174,7 @@ public:
         const double hmin = std::min({mF.spacing[0], mF.spacing[1], mF.spacing[2]});
         d2 = std::numeric_limits<double>::infinity();
         int done = -1; // cells within Chebyshev radius `done` already searched
-        for (int r = 2; r <= 64; r *= 2) {
+        for (int r = 2; r <= 64; r = r < 4 ? r + 1 : r * 2) {
             for (int ck = k - r; ck < k + r; ++ck) {
                 if (ck < 0 || ck >= mCellDims.z()) continue;
                 for (int cj = j - r; cj < j + r; ++cj) {
@@ -194,8 +194,9 @@ public:
                 }
             }
             done = r;
-            // any cell outside the window [i-r, i+r) is at least (r - 1) samples away
-            const double reach = double(r - 1) * hmin;
+            // a cell outside the window [i-r, i+r)^3 spans at most up to i-r (or starts at
+            // i+r) on some axis: it is at least r samples away
+            const double reach = double(r) * hmin;
             if (d2 <= reach * reach) return true;
             if (i - r < 0 && j - r < 0 && k - r < 0 && i + r >= mCellDims.x() && j + r >= mCellDims.y() &&
                 k + r >= mCellDims.z())
