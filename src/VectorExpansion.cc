@@ -59,6 +59,7 @@ struct MeshWalk
     std::vector<int32_t> edge;      ///< 3 per triangle: the triangle across each edge (-1: none)
     std::vector<uint32_t> fanBegin; ///< per vertex + 1: offsets into fan
     std::vector<int32_t> fan;       ///< triangles around each vertex
+    std::vector<Vec3d> corners;     ///< 3 per triangle: its vertices, contiguous (cache-friendly)
     void build(const TriangleMesh& mesh);
 };
 
@@ -96,6 +97,11 @@ std::vector<int32_t> edgeNeighbours(const TriangleMesh& mesh)
 void MeshWalk::build(const TriangleMesh& mesh)
 {
     edge = edgeNeighbours(mesh);
+    corners.resize(3 * mesh.triangles.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangles.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t t = r.begin(); t != r.end(); ++t)
+            for (int k = 0; k < 3; ++k) corners[3 * t + size_t(k)] = mesh.points[mesh.triangles[t][k]];
+    });
     const size_t nv = mesh.points.size();
     fanBegin.assign(nv + 1, 0);
     for (const Vec3I& t : mesh.triangles)
@@ -332,16 +338,17 @@ public:
         std::atomic<uint64_t> walked{0}, refined{0};
         static const int kOff[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
 
-        tbb::enumerable_thread_specific<uint64_t> evalsTls(0);
-        auto closest = [&](const openvdb::Vec3d& p, int32_t tri) {
-            ++evalsTls.local();
-            const Vec3I& t = mesh.triangles[size_t(tri)];
-            return closestPointOnTriangle(p, mesh.points[t[0]], mesh.points[t[1]], mesh.points[t[2]]);
+        std::atomic<uint64_t> evalsTotal{0};
+        auto closest = [&](const openvdb::Vec3d& p, int32_t tri, uint64_t& ev) {
+            ++ev;
+            const Vec3d* c = &walk.corners[3 * size_t(tri)];
+            return closestPointOnTriangle(p, c[0], c[1], c[2]);
         };
         // try triangle `start` at p; if strictly closer than (best2, bestT), walk downhill from it
-        auto tryFrom = [&](const openvdb::Vec3d& p, int32_t start, double& best2, int32_t& bestT, uint64_t& steps) {
+        auto tryFrom = [&](const openvdb::Vec3d& p, int32_t start, double& best2, int32_t& bestT, uint64_t& steps,
+                           uint64_t& ev) {
             if (start < 0 || uint32_t(start) >= nTris || start == bestT) return false;
-            TriangleClosestPoint cp = closest(p, start);
+            TriangleClosestPoint cp = closest(p, start, ev);
             if (!(cp.distanceSqr < best2)) return false;
             int32_t cur = start;
             double cur2 = cp.distanceSqr;
@@ -352,7 +359,7 @@ public:
                 TriangleFeature nextF = curF;
                 auto consider = [&](int32_t c) {
                     if (c < 0 || c == cur) return;
-                    const TriangleClosestPoint q = closest(p, c);
+                    const TriangleClosestPoint q = closest(p, c, ev);
                     if (q.distanceSqr < next2) { next2 = q.distanceSqr; next = c; nextF = q.feature; }
                 };
                 for (int e = 0; e < 3; ++e) consider(walk.edge[size_t(cur) * 3 + size_t(e)]);
@@ -374,7 +381,7 @@ public:
         // round 0: own triangle + the six neighbours' propagated triangles
         tbb::enumerable_thread_specific<std::vector<size_t>> movedTls;
         tbb::parallel_for(tbb::blocked_range<size_t>(0, mLeaves.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
-            uint64_t steps = 0, nr = 0;
+            uint64_t steps = 0, nr = 0, evals = 0;
             auto& moved = movedTls.local();
             for (size_t li = r.begin(); li != r.end(); ++li) {
                 const Coord o = mLeaves[li]->origin();
@@ -397,14 +404,14 @@ public:
                         if (nbs[q] && nbs[q]->tri >= 0 && nbs[q]->tri != c.tri) border = true;
                     }
                     if (!border && uint32_t(c.tri) < nTris) {
-                        best2 = closest(p, c.tri).distanceSqr;
+                        best2 = closest(p, c.tri, evals).distanceSqr;
                         bestT = c.tri;
                     } else {
                         // the triangles of all 26 neighbours (each distinct one once)
                         int32_t tried[27];
                         int nTried = 0;
                         tried[nTried++] = c.tri;
-                        tryFrom(p, c.tri, best2, bestT, steps);
+                        tryFrom(p, c.tri, best2, bestT, steps, evals);
                         for (int dz = -1; dz <= 1; ++dz)
                             for (int dy = -1; dy <= 1; ++dy)
                                 for (int dx = -1; dx <= 1; ++dx) {
@@ -414,7 +421,7 @@ public:
                                     for (int q = 0; q < nTried && !seen; ++q) seen = tried[q] == nb->tri;
                                     if (seen) continue;
                                     tried[nTried++] = nb->tri;
-                                    tryFrom(p, nb->tri, best2, bestT, steps);
+                                    tryFrom(p, nb->tri, best2, bestT, steps, evals);
                                 }
                     }
                     mRefTri[idx] = bestT;
@@ -424,6 +431,7 @@ public:
                 }
             }
             walked += steps;
+            evalsTotal += evals;
             refined += nr;
         });
         // Jacobi rounds: voxels next to a voxel whose triangle changed try that triangle. Each
@@ -451,7 +459,7 @@ public:
             }
             tbb::enumerable_thread_specific<std::vector<Change>> changesTls;
             tbb::parallel_for(tbb::blocked_range<size_t>(0, cand.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
-                uint64_t steps = 0;
+                uint64_t steps = 0, evals = 0;
                 auto& changes = changesTls.local();
                 for (size_t c = r.begin(); c != r.end(); ++c) {
                     const size_t idx = cand[c];
@@ -465,11 +473,12 @@ public:
                     for (const auto& off : kOff) {
                         const size_t q = cellIndexAt(li, i + off[0], j + off[1], k + off[2]);
                         if (q == size_t(-1) || mRefTri[q] == bestT) continue;
-                        improved |= tryFrom(p, mRefTri[q], best2, bestT, steps);
+                        improved |= tryFrom(p, mRefTri[q], best2, bestT, steps, evals);
                     }
                     if (improved) changes.push_back({idx, bestT, best2});
                 }
                 walked += steps;
+                evalsTotal += evals;
             });
             changedList.clear();
             for (auto& v : changesTls) {
@@ -482,7 +491,7 @@ public:
             mStats.improvedByNeighbours += changedList.size();
         }
         mStats.refineRounds = rounds;
-        for (uint64_t e : evalsTls) mStats.refineEvaluations += e;
+        mStats.refineEvaluations = evalsTotal;
         mStats.walkSteps = walked;
         mStats.refinedVoxels = refined;
     }
