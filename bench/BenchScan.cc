@@ -25,7 +25,6 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
 
-#include <png.h>
 #include <levelforge/Exceptions.h>
 
 #include <chrono>
@@ -39,26 +38,17 @@
 #include <vector>
 
 using namespace levelforge;
+#include "BenchPng.h"
 #include "BenchUtil.h"
 using levelforge_bench::parseList;
 using levelforge_bench::since;
 using Clock = std::chrono::steady_clock;
 
+using levelforge_bench::writePng;
+
 namespace {
 
 
-/// Writes an 8-bit RGB image with libpng's simplified API; throws IoError on failure.
-void writePng(const std::string& path, int w, int h, const std::vector<unsigned char>& rgb)
-{
-    png_image image;
-    std::memset(&image, 0, sizeof(image));
-    image.version = PNG_IMAGE_VERSION;
-    image.width = png_uint_32(w);
-    image.height = png_uint_32(h);
-    image.format = PNG_FORMAT_RGB;
-    if (!png_image_write_to_file(&image, path.c_str(), 0, rgb.data(), 0, nullptr))
-        throw IoError(path + ": cannot write PNG (" + image.message + ")");
-}
 
 TriangleMesh makeCylinder(int sides, double radius, double height)
 {

@@ -29,8 +29,8 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
 
-#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
-#include <OpenMesh/Tools/Subdivider/Uniform/LoopT.hh>
+
+#include "BenchLoop.h"
 
 #include <CLI/CLI.hpp>
 
@@ -147,51 +147,6 @@ int runChild(const std::vector<std::string>& args)
     int status = 0;
     if (::waitpid(pid, &status, 0) != pid) return -1;
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-// ------------------------------------------------------------------ Loop subdivision (OpenMesh)
-
-struct DoubleTraits : public OpenMesh::DefaultTraits
-{
-    typedef OpenMesh::Vec3d Point;
-    typedef OpenMesh::Vec3d Normal;
-};
-using OMesh = OpenMesh::TriMesh_ArrayKernelT<DoubleTraits>;
-
-levelforge::TriangleMesh loopSubdivide(const levelforge::TriangleMesh& in, int levels)
-{
-    OMesh om;
-    std::vector<OMesh::VertexHandle> vh;
-    vh.reserve(in.points.size());
-    for (const auto& p : in.points) vh.push_back(om.add_vertex(OMesh::Point(p[0], p[1], p[2])));
-    size_t rejected = 0;
-    for (const auto& t : in.triangles) {
-        if (!om.add_face(vh[t[0]], vh[t[1]], vh[t[2]]).is_valid()) ++rejected;
-    }
-    if (rejected)
-        throw levelforge::InvalidMeshError(in.source + ": " + std::to_string(rejected) +
-                                           " faces are non-manifold for OpenMesh; cannot Loop-subdivide");
-    OpenMesh::Subdivider::Uniform::LoopT<OMesh, double> loop;
-    loop.attach(om);
-    loop(size_t(levels));
-    loop.detach();
-    om.garbage_collection();
-
-    levelforge::TriangleMesh out;
-    out.source = in.source + " (Loop x" + std::to_string(levels) + ")";
-    out.points.reserve(om.n_vertices());
-    for (auto v : om.vertices()) {
-        const auto& p = om.point(v);
-        out.points.emplace_back(p[0], p[1], p[2]);
-    }
-    out.triangles.reserve(om.n_faces());
-    for (auto f : om.faces()) {
-        levelforge::Vec3I t;
-        int k = 0;
-        for (auto v : om.fv_range(f)) t[k++] = uint32_t(v.idx());
-        out.triangles.push_back(t);
-    }
-    return out;
 }
 
 // ------------------------------------------------------------------ results
@@ -311,7 +266,7 @@ int main(int argc, char** argv)
         double subdivideSeconds = 0;
         if (subdivide > 0) {
             t0 = Clock::now();
-            mesh = loopSubdivide(mesh, subdivide);
+            mesh = levelforge_bench::loopSubdivide(mesh, subdivide);
             subdivideSeconds = secondsSince(t0);
         }
 

@@ -1,0 +1,1291 @@
+// Adaptively sampled distance fields on the VDB tile hierarchy (Yin, Liu, Wu 2011).
+// See AdaptiveDistanceField.h for the design. This file holds the reconstruction (shared by
+// the builder, the queries, the level-set conversion and CSG), the value pipeline that fills a
+// layout (leaves, level-1 and level-2 tiles) from a sample provider, and the mesh provider
+// (type-1/2/3 samples). CSG and the level-set conversion live in AdfCsg.cc.
+#include "AdfInternal.h"
+
+#include <levelforge/Exceptions.h>
+#include <levelforge/MeshToLevelSet.h>
+#include <levelforge/MeshValidation.h>
+#include <levelforge/Progress.h>
+#include <levelforge/PseudoNormals.h>
+#include <levelforge/TriangleDistance.h>
+#include <levelforge/TriangleListTree.h>
+#include <levelforge/VdbIO.h>
+
+#include <openvdb/tools/Morphology.h>
+#include <openvdb/tools/SignedFloodFill.h>
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <sstream>
+
+namespace levelforge {
+
+namespace adf_internal {
+
+// ------------------------------------------------------------------------------ reconstruction
+
+bool Reconstruction::subdividedIn(const FloatLeaf& leaf, int x0, int y0, int z0, int n)
+{
+    const auto& m = leaf.getValueMask();
+    const uint64_t zb = ((uint64_t(1) << n) - 1) << z0;
+    uint64_t pat = 0;
+    for (int y = y0; y < y0 + n; ++y) pat |= zb << (8 * y);
+    for (int x = x0; x < x0 + n; ++x)
+        if (m.template getWord<uint64_t>(openvdb::Index(x)) & pat) return true;
+    return false;
+}
+
+CellInfo Reconstruction::cellAt(const Coord& c)
+{
+    const Internal1* n1 = mAcc.template probeConstNode<Internal1>(c);
+    if (!n1) return {128, Coord(c.x() & ~127, c.y() & ~127, c.z() & ~127)};
+    const FloatLeaf* leaf = mAcc.probeConstLeaf(c);
+    if (!leaf) return {8, Coord(c.x() & ~7, c.y() & ~7, c.z() & ~7)};
+    return cellInLeaf(*leaf, c);
+}
+
+CellInfo cellInLeaf(const FloatLeaf& leaf, const Coord& c)
+{
+    const int lx = c.x() & 7, ly = c.y() & 7, lz = c.z() & 7;
+    if (!Reconstruction::subdividedIn(leaf, lx & ~3, ly & ~3, lz & ~3, 4))
+        return {4, Coord(c.x() & ~3, c.y() & ~3, c.z() & ~3)};
+    if (!Reconstruction::subdividedIn(leaf, lx & ~1, ly & ~1, lz & ~1, 2))
+        return {2, Coord(c.x() & ~1, c.y() & ~1, c.z() & ~1)};
+    return {1, c};
+}
+
+bool Reconstruction::stored(const Coord& p, float& v)
+{
+    if (const FloatLeaf* leaf = mAcc.probeConstLeaf(p)) {
+        v = leaf->getValue(p);
+        return true;
+    }
+    if (mAcc.template probeConstNode<Internal1>(p)) {
+        if ((p.x() & 7) || (p.y() & 7) || (p.z() & 7)) return false;
+        v = mAcc.getValue(p);
+        return true;
+    }
+    if (mAcc.template probeConstNode<Internal2>(p)) {
+        if ((p.x() & 127) || (p.y() & 127) || (p.z() & 127)) return false;
+        v = mAcc.getValue(p);
+        return true;
+    }
+    return false;
+}
+
+Coord Reconstruction::clampCell(const Coord& p) const
+{
+    const Coord& lo = mDomain.min();
+    const Coord& hi = mDomain.max();
+    return Coord(std::max(lo.x(), std::min(p.x(), hi.x() - 1)), std::max(lo.y(), std::min(p.y(), hi.y() - 1)),
+                 std::max(lo.z(), std::min(p.z(), hi.z() - 1)));
+}
+
+double Reconstruction::value(const Coord& p)
+{
+    float v;
+    if (stored(p, v)) return v;
+    const CellInfo X = cellAt(clampCell(p));
+    return interp(X, Vec3d(p.x(), p.y(), p.z()), nullptr);
+}
+
+double Reconstruction::interp(const CellInfo& X, const Vec3d& q, Vec3d* dvdt)
+{
+    const int s = X.size;
+    double v[8];
+    for (int k = 0; k < 8; ++k) {
+        const Coord c = X.origin + Coord(((k >> 2) & 1) * s, ((k >> 1) & 1) * s, (k & 1) * s);
+        v[k] = value(c);
+    }
+    return trilinear(v, (q - Vec3d(X.origin.x(), X.origin.y(), X.origin.z())) / double(s), dvdt);
+}
+
+double Reconstruction::trilinear(const double* v, const Vec3d& t, Vec3d* dvdt)
+{
+    const double tx = t[0], ty = t[1], tz = t[2];
+    // v index = (x << 2) | (y << 1) | z
+    const double c00 = v[0] + (v[4] - v[0]) * tx, c01 = v[1] + (v[5] - v[1]) * tx;
+    const double c10 = v[2] + (v[6] - v[2]) * tx, c11 = v[3] + (v[7] - v[3]) * tx;
+    const double c0 = c00 + (c10 - c00) * ty, c1 = c01 + (c11 - c01) * ty;
+    if (dvdt) {
+        const double ax = (v[4] - v[0]) * (1 - ty) * (1 - tz) + (v[6] - v[2]) * ty * (1 - tz) +
+                          (v[5] - v[1]) * (1 - ty) * tz + (v[7] - v[3]) * ty * tz;
+        const double ay = (c10 - c00) * (1 - tz) + (c11 - c01) * tz;
+        const double az = c1 - c0;
+        *dvdt = Vec3d(ax, ay, az);
+    }
+    return c0 + (c1 - c0) * tz;
+}
+
+double Reconstruction::distanceIndex(const Vec3d& q, Vec3d* gradIndex, int* levelOut)
+{
+    const Coord& lo = mDomain.min();
+    const Coord& hi = mDomain.max();
+    Vec3d qc = q;
+    for (int k = 0; k < 3; ++k) qc[k] = std::max(double(lo[k]), std::min(q[k], double(hi[k])));
+    const double extra = (q - qc).length();
+    const Coord c = clampCell(Coord(int(std::floor(qc[0])), int(std::floor(qc[1])), int(std::floor(qc[2]))));
+    const CellInfo X = cellAt(c);
+    if (levelOut) *levelOut = levelOfSize(X.size);
+    const int s = X.size;
+    Vec3d dvdt;
+    double d;
+    const FloatLeaf* leaf = s == 1 ? mAcc.probeConstLeaf(c) : nullptr;
+    if (leaf && (c.x() & 7) < 7 && (c.y() & 7) < 7 && (c.z() & 7) < 7) {
+        // fast path: the 8 corners are voxels of the same leaf
+        const openvdb::Index o = FloatLeaf::coordToOffset(c);
+        const float* buf = leaf->buffer().data();
+        const double v[8] = {buf[o], buf[o + 1], buf[o + 8], buf[o + 9], buf[o + 64], buf[o + 65], buf[o + 72], buf[o + 73]};
+        d = trilinear(v, qc - Vec3d(c.x(), c.y(), c.z()), &dvdt);
+    } else {
+        d = interp(X, qc, &dvdt);
+    }
+    if (gradIndex) *gradIndex = dvdt / double(s);
+    return d + extra;
+}
+
+int levelOfSize(int size)
+{
+    switch (size) {
+    case 1: return 0;
+    case 2: return 1;
+    case 4: return 2;
+    case 8: return 3;
+    case 128: return 4;
+    default: return -1;
+    }
+}
+
+// ------------------------------------------------------------------------------------- layout
+
+namespace {
+inline int floorTo(int v, int m) { return v & ~(m - 1); }
+inline int ceilTo(int v, int m) { return (v + m - 1) & ~(m - 1); }
+inline bool inDomainCell(const CoordBBox& dom, const Coord& c)
+{
+    for (int k = 0; k < 3; ++k)
+        if (c[k] < dom.min()[k] || c[k] >= dom.max()[k]) return false;
+    return true;
+}
+} // namespace
+
+void Layout::finish()
+{
+    // leaves sorted and merged
+    std::vector<size_t> order(leafOrigins.size());
+    std::iota(order.begin(), order.end(), size_t(0));
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return leafOrigins[a] < leafOrigins[b]; });
+    std::vector<Coord> o2;
+    std::vector<LeafMask> m2;
+    for (size_t i : order) {
+        if (!o2.empty() && o2.back() == leafOrigins[i]) {
+            m2.back() |= leafMasks[i];
+        } else {
+            o2.push_back(leafOrigins[i]);
+            m2.push_back(leafMasks[i]);
+        }
+    }
+    leafOrigins.swap(o2);
+    leafMasks.swap(m2);
+    // grading: the 128³ blocks holding leaves and their in-domain 26-neighbours are subdivided,
+    // so a leaf never touches a 128³ cell (its constrained corners then come from 8³ cells)
+    const Coord lo0 = domain.min(), hi0 = domain.max();
+    for (const Coord& o : leafOrigins) {
+        const Coord b(floorTo(o.x(), 128), floorTo(o.y(), 128), floorTo(o.z(), 128));
+        for (int dx = -1; dx <= 1; ++dx)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dz = -1; dz <= 1; ++dz) {
+                    const Coord n = b + Coord(dx * 128, dy * 128, dz * 128);
+                    if (n.x() >= lo0.x() && n.y() >= lo0.y() && n.z() >= lo0.z() && n.x() < hi0.x() && n.y() < hi0.y() &&
+                        n.z() < hi0.z())
+                        subdividedL2.push_back(n);
+                }
+    }
+    std::sort(subdividedL2.begin(), subdividedL2.end());
+    subdividedL2.erase(std::unique(subdividedL2.begin(), subdividedL2.end()), subdividedL2.end());
+    // every L2 block of the domain plus one layer past the maximum faces (storage of the last
+    // corners): subdivided blocks are internal-1 nodes, the others level-2 tiles. A block past
+    // the domain is subdivided when an in-domain neighbour is.
+    const Coord lo = domain.min(), hi = domain.max();
+    auto isSub = [&](const Coord& b) { return std::binary_search(subdividedL2.begin(), subdividedL2.end(), b); };
+    std::vector<Coord> extraSub;
+    tileL2.clear();
+    for (int x = lo.x(); x <= hi.x(); x += 128)
+        for (int y = lo.y(); y <= hi.y(); y += 128)
+            for (int z = lo.z(); z <= hi.z(); z += 128) {
+                const Coord b(x, y, z);
+                const bool beyond = x == hi.x() || y == hi.y() || z == hi.z();
+                if (!beyond) {
+                    if (!isSub(b)) tileL2.push_back(b);
+                    continue;
+                }
+                bool sub = false;
+                for (int dx = -1; dx <= 1 && !sub; ++dx)
+                    for (int dy = -1; dy <= 1 && !sub; ++dy)
+                        for (int dz = -1; dz <= 1 && !sub; ++dz) {
+                            const Coord n = b + Coord(dx * 128, dy * 128, dz * 128);
+                            if (n.x() < hi.x() && n.y() < hi.y() && n.z() < hi.z() && n.x() >= lo.x() &&
+                                n.y() >= lo.y() && n.z() >= lo.z() && isSub(n))
+                                sub = true;
+                        }
+                if (sub) extraSub.push_back(b); else tileL2.push_back(b);
+            }
+    subdividedL2.insert(subdividedL2.end(), extraSub.begin(), extraSub.end());
+    std::sort(subdividedL2.begin(), subdividedL2.end());
+    subdividedL2.erase(std::unique(subdividedL2.begin(), subdividedL2.end()), subdividedL2.end());
+}
+
+void makeDomain(Layout& layout, const CoordBBox& cellBox, double paddingVoxels)
+{
+    const int pad = std::max(9, int(std::ceil(paddingVoxels)));
+    const Coord lo(floorTo(cellBox.min().x() - pad, 128), floorTo(cellBox.min().y() - pad, 128),
+                   floorTo(cellBox.min().z() - pad, 128));
+    const Coord hi(ceilTo(cellBox.max().x() + 1 + pad, 128), ceilTo(cellBox.max().y() + 1 + pad, 128),
+                   ceilTo(cellBox.max().z() + 1 + pad, 128));
+    layout.domain = CoordBBox(lo, hi);
+}
+
+FloatTree::Ptr createTree(const Layout& layout, float background)
+{
+    auto tree = std::make_shared<FloatTree>(background);
+    for (const Coord& b : layout.subdividedL2) tree->addTile(1, b, 0.0f, false); // creates the internal-1 node
+    for (size_t i = 0; i < layout.leafOrigins.size(); ++i) {
+        auto* leaf = new FloatLeaf(layout.leafOrigins[i], 0.0f, false);
+        leaf->setValueMask(layout.leafMasks[i]);
+        tree->addLeaf(leaf);
+    }
+    for (const Coord& b : layout.tileL2) tree->addTile(2, b, 0.0f, false);
+    return tree;
+}
+
+// ----------------------------------------------------------------------------- value pipeline
+
+namespace {
+
+struct Hanging
+{
+    float* leafValue;    // non-null: a leaf voxel
+    const float* leafBuf;// the leaf's buffer
+    Coord p;             // lattice point
+    CellInfo cell;       // the coarsest touching cell, whose trilinear value p takes
+};
+
+/// The coarsest in-domain cell touching lattice point p (size 0 when none).
+CellInfo coarsestTouching(Reconstruction& r, const CoordBBox& dom, const Coord& p)
+{
+    CellInfo best;
+    for (int d = 0; d < 8; ++d) {
+        const Coord c = p - Coord((d >> 2) & 1, (d >> 1) & 1, d & 1);
+        if (!inDomainCell(dom, c)) continue;
+        const CellInfo X = r.cellAt(c);
+        if (X.size > best.size) best = X;
+    }
+    return best;
+}
+
+inline bool isCornerOf(const CellInfo& X, const Coord& p)
+{
+    for (int k = 0; k < 3; ++k) {
+        const int t = p[k] - X.origin[k];
+        if (t != 0 && t != X.size) return false;
+    }
+    return true;
+}
+
+} // namespace
+
+PipelineResult fillValues(FloatTree& tree, const Layout& layout, SampleProvider& provider,
+                          openvdb::util::NullInterrupter* interrupter)
+{
+    PipelineResult res;
+    const CoordBBox dom = layout.domain;
+    const size_t nLeaves = layout.leafOrigins.size();
+    std::vector<FloatLeaf*> leaves(nLeaves);
+    for (size_t i = 0; i < nLeaves; ++i) leaves[i] = tree.probeLeaf(layout.leafOrigins[i]);
+
+    // ---- leaves: classification (free / hanging), then the provider's free samples
+    const auto t0 = Clock::now();
+    std::vector<std::vector<Hanging>> hangLeaf(nLeaves);
+    std::atomic<bool> stop{false};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nLeaves, 4), [&](const tbb::blocked_range<size_t>& range) {
+        if (stop) return;
+        Reconstruction rec(tree, dom);
+        uint8_t isFree[512];
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+            FloatLeaf* leaf = leaves[i];
+            const Coord o = leaf->origin();
+            // cell sizes of the 9³ unit cells [o-1, o+7]
+            CellInfo cells[729];
+            for (int x = 0; x < 9; ++x)
+                for (int y = 0; y < 9; ++y)
+                    for (int z = 0; z < 9; ++z) {
+                        const Coord c = o + Coord(x - 1, y - 1, z - 1);
+                        CellInfo& X = cells[(x * 9 + y) * 9 + z];
+                        if (x > 0 && y > 0 && z > 0) X = cellInLeaf(*leaf, c); // own block: no probe
+                        else X = inDomainCell(dom, c) ? rec.cellAt(c) : CellInfo{};
+                    }
+            float* buf = leaf->buffer().data();
+            for (int x = 0; x < 8; ++x)
+                for (int y = 0; y < 8; ++y)
+                    for (int z = 0; z < 8; ++z) {
+                        const int off = (x << 6) | (y << 3) | z;
+                        CellInfo S;
+                        for (int d = 0; d < 8; ++d) {
+                            const CellInfo& X = cells[((x + 1 - ((d >> 2) & 1)) * 9 + (y + 1 - ((d >> 1) & 1))) * 9 + (z + 1 - (d & 1))];
+                            if (X.size > S.size) S = X;
+                        }
+                        const Coord p = o + Coord(x, y, z);
+                        isFree[off] = S.size > 0 && isCornerOf(S, p);
+                        if (!isFree[off]) hangLeaf[i].push_back({buf + off, buf, p, S});
+                    }
+            provider.leafSamples(i, *leaf, isFree, buf);
+        }
+        if (interrupter && interrupter->wasInterrupted()) stop = true;
+    });
+    if (stop) throw InterruptedError("interrupted while computing ADF leaf samples");
+    res.secondsLeaves = secondsSince(t0);
+
+    provider.afterLeaves(tree);
+
+    // ---- tiles: level-1 tiles of the internal-1 nodes and level-2 tiles
+    const auto t1 = Clock::now();
+    struct TilePoint { Coord p; int level; };
+    std::vector<TilePoint> tiles;
+    for (const Coord& b : layout.subdividedL2) {
+        const Internal1* n1 = tree.root().template probeConstNode<Internal1>(b);
+        if (!n1) continue;
+        for (openvdb::Index n = 0; n < Internal1::NUM_VALUES; ++n)
+            if (!n1->isChildMaskOn(n)) tiles.push_back({n1->offsetToGlobalCoord(n), 1});
+    }
+    for (const Coord& b : layout.tileL2) tiles.push_back({b, 2});
+    std::vector<float> tileValue(tiles.size(), 0.0f);
+    std::vector<CellInfo> tileHang(tiles.size());
+    std::vector<uint8_t> tileKind(tiles.size(), 0); // 0 unused, 1 free, 2 hanging
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+        Reconstruction rec(tree, dom);
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+            const CellInfo S = coarsestTouching(rec, dom, tiles[i].p);
+            if (S.size == 0) continue;
+            if (isCornerOf(S, tiles[i].p)) {
+                tileKind[i] = 1;
+                tileValue[i] = float(provider.tileSample(tiles[i].p));
+            } else {
+                tileKind[i] = 2;
+                tileHang[i] = S;
+            }
+        }
+    });
+    for (size_t i = 0; i < tiles.size(); ++i)
+        if (tileKind[i] == 1) tree.addTile(openvdb::Index(tiles[i].level), tiles[i].p, tileValue[i], false);
+    res.secondsTiles = secondsSince(t1);
+
+    // ---- hanging points, coarsest cells first (their corners are final by then)
+    const auto t2 = Clock::now();
+    for (int size : {128, 8, 4, 2}) {
+        std::vector<size_t> tileIdx;
+        for (size_t i = 0; i < tiles.size(); ++i)
+            if (tileKind[i] == 2 && tileHang[i].size == size) tileIdx.push_back(i);
+        std::vector<const Hanging*> items;
+        for (const auto& v : hangLeaf)
+            for (const Hanging& h : v)
+                if (h.cell.size == size) items.push_back(&h);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, items.size() + tileIdx.size(), 1024),
+                          [&](const tbb::blocked_range<size_t>& range) {
+            Reconstruction rec(tree, dom);
+            CellInfo lastS{0, Coord(0)};
+            double lastV[8];
+            // the trilinear value of cell S at p, reusing the corner values of the previous cell
+            auto interpCached = [&](const CellInfo& S, const Coord& p) {
+                if (S.size != lastS.size || S.origin != lastS.origin) {
+                    for (int c = 0; c < 8; ++c)
+                        lastV[c] = rec.value(S.origin + Coord(((c >> 2) & 1) * S.size, ((c >> 1) & 1) * S.size, (c & 1) * S.size));
+                    lastS = S;
+                }
+                const Vec3d t(double(p.x() - S.origin.x()) / S.size, double(p.y() - S.origin.y()) / S.size,
+                              double(p.z() - S.origin.z()) / S.size);
+                return Reconstruction::trilinear(lastV, t, nullptr);
+            };
+            for (size_t k = range.begin(); k != range.end(); ++k) {
+                if (k < items.size()) {
+                    const Hanging& h = *items[k];
+                    const Coord lo = h.cell.origin - (h.p & ~7); // cell origin local to the point's leaf
+                    if (h.cell.size <= 4 && lo.x() >= 0 && lo.y() >= 0 && lo.z() >= 0 && lo.x() + h.cell.size <= 7 &&
+                        lo.y() + h.cell.size <= 7 && lo.z() + h.cell.size <= 7) {
+                        // all corners in the same leaf: read the buffer
+                        const int sz = h.cell.size;
+                        double v[8];
+                        for (int c = 0; c < 8; ++c)
+                            v[c] = h.leafBuf[((lo.x() + ((c >> 2) & 1) * sz) << 6) | ((lo.y() + ((c >> 1) & 1) * sz) << 3) |
+                                             (lo.z() + (c & 1) * sz)];
+                        const Vec3d t(double(h.p.x() - h.cell.origin.x()) / sz, double(h.p.y() - h.cell.origin.y()) / sz,
+                                      double(h.p.z() - h.cell.origin.z()) / sz);
+                        *h.leafValue = float(Reconstruction::trilinear(v, t, nullptr));
+                        continue;
+                    }
+                    *h.leafValue = float(interpCached(h.cell, h.p));
+                } else {
+                    const size_t i = tileIdx[k - items.size()];
+                    tileValue[i] = float(interpCached(tileHang[i], tiles[i].p));
+                }
+            }
+        });
+        for (size_t i : tileIdx) tree.addTile(openvdb::Index(tiles[i].level), tiles[i].p, tileValue[i], false);
+        res.hanging += items.size() + tileIdx.size();
+    }
+    for (size_t i = 0; i < tiles.size(); ++i) {
+        if (tileKind[i] == 0) continue;
+        if (tiles[i].level == 1) ++res.level1Tiles; else ++res.level2Tiles;
+    }
+    for (size_t i = 0; i < tiles.size(); ++i) {
+        if (tileKind[i] == 0 || !inDomainCell(dom, tiles[i].p)) continue;
+        ++res.cells[tiles[i].level == 1 ? 3 : 4];
+    }
+    res.secondsHanging = secondsSince(t2);
+    return res;
+}
+
+// -------------------------------------------------------------------------------- metadata
+
+void stampAdfMetadata(openvdb::FloatGrid& grid, const CoordBBox& domain, const std::array<double, kAdfLevels>& bounds)
+{
+    grid.setGridClass(openvdb::GRID_UNKNOWN);
+    grid.insertMeta(kAdfMetaKey, openvdb::StringMetadata(kAdfVersion));
+    grid.insertMeta("levelforge:adf_domain_min", openvdb::Vec3IMetadata(domain.min().asVec3i()));
+    grid.insertMeta("levelforge:adf_domain_max", openvdb::Vec3IMetadata(domain.max().asVec3i()));
+    grid.insertMeta("levelforge:adf_sampling",
+                    openvdb::StringMetadata(
+                        "samples at index points (world = index*voxel size); leaf voxels: the lattice values of "
+                        "the block, active voxels = subdivided finest cells, nodes of size 2/4 inside a leaf are "
+                        "subdivided iff they hold an active voxel; level-1 tile: value at its minimum corner, cell "
+                        "8^3; level-2 tile: value at its minimum corner, cell 128^3; corners lying on a larger "
+                        "cell's face or edge take that cell's trilinear value; trilinear reconstruction"));
+    for (int l = 0; l < kAdfLevels; ++l) {
+        char key[64];
+        std::snprintf(key, sizeof(key), "levelforge:adf_bound_level%d_voxels", l);
+        grid.insertMeta(key, openvdb::DoubleMetadata(bounds[size_t(l)]));
+    }
+    grid.insertMeta("levelforge:generator", openvdb::StringMetadata(generatorString()));
+}
+
+// ------------------------------------------------------------------------- the mesh provider
+
+namespace {
+
+/// Nearest centre of a boundary cell (type-3 estimator, §7.2): a BVH over the list tree's leaves.
+class CentreBvh
+{
+public:
+    using ListLeaf = openvdb::UInt32Tree::LeafNodeType;
+    explicit CentreBvh(const openvdb::UInt32Tree& tree)
+    {
+        // primitives: the non-empty 4³ quarters of every leaf (tight boxes prune well)
+        for (auto it = tree.cbeginLeaf(); it; ++it) {
+            const auto& mask = it->getValueMask();
+            for (int q = 0; q < 8; ++q) {
+                const int x0 = (q >> 2) * 4, y0 = ((q >> 1) & 1) * 4, z0 = (q & 1) * 4;
+                CoordBBox bb;
+                for (int x = x0; x < x0 + 4; ++x)
+                    for (int y = y0; y < y0 + 4; ++y)
+                        for (int z = z0; z < z0 + 4; ++z)
+                            if (mask.isOn(openvdb::Index((x << 6) | (y << 3) | z))) bb.expand(it->origin() + Coord(x, y, z));
+                if (bb.empty()) continue;
+                mLeaves.push_back(&*it);
+                mQuarter.push_back(uint8_t(q));
+                mBoxes.push_back(bb);
+            }
+        }
+        std::vector<uint32_t> idx(mLeaves.size());
+        std::iota(idx.begin(), idx.end(), 0u);
+        if (!idx.empty()) build(idx, 0, idx.size());
+    }
+    bool empty() const { return mLeaves.empty(); }
+
+    /// Squared index-space distance from p to the nearest cell centre; `hint` is a centre
+    /// (updated) used as the starting bound.
+    double nearest2(const Vec3d& p, Vec3d& hint) const
+    {
+        double best2 = (p - hint).lengthSqr();
+        uint32_t stack[128];
+        int sp = 0;
+        stack[sp++] = 0;
+        while (sp) {
+            const Node& n = mNodes[stack[--sp]];
+            if (boxDist2(n, p) >= best2) continue;
+            if (n.leaf != kNoLeaf) {
+                scanLeaf(n.leaf, p, best2, hint);
+                continue;
+            }
+            const double dl = boxDist2(mNodes[n.left], p), dr = boxDist2(mNodes[n.right], p);
+            if (dl < dr) { stack[sp++] = n.right; stack[sp++] = n.left; }
+            else { stack[sp++] = n.left; stack[sp++] = n.right; }
+        }
+        return best2;
+    }
+
+private:
+    static constexpr uint32_t kNoLeaf = 0xffffffffu;
+    struct Node { double lo[3], hi[3]; uint32_t left = 0, right = 0, leaf = kNoLeaf; };
+
+    static double boxDist2(const Node& n, const Vec3d& p)
+    {
+        double d2 = 0;
+        for (int k = 0; k < 3; ++k) {
+            const double e = p[k] < n.lo[k] ? n.lo[k] - p[k] : (p[k] > n.hi[k] ? p[k] - n.hi[k] : 0.0);
+            d2 += e * e;
+        }
+        return d2;
+    }
+
+    uint32_t build(std::vector<uint32_t>& idx, size_t b, size_t e)
+    {
+        const uint32_t me = uint32_t(mNodes.size());
+        mNodes.emplace_back();
+        Node n;
+        for (int k = 0; k < 3; ++k) { n.lo[k] = 1e300; n.hi[k] = -1e300; }
+        for (size_t i = b; i < e; ++i) {
+            const CoordBBox& bb = mBoxes[idx[i]];
+            for (int k = 0; k < 3; ++k) {
+                n.lo[k] = std::min(n.lo[k], bb.min()[k] + 0.5);
+                n.hi[k] = std::max(n.hi[k], bb.max()[k] + 0.5);
+            }
+        }
+        if (e - b == 1) {
+            n.leaf = idx[b];
+        } else {
+            int axis = 0;
+            for (int k = 1; k < 3; ++k)
+                if (n.hi[k] - n.lo[k] > n.hi[axis] - n.lo[axis]) axis = k;
+            const size_t mid = (b + e) / 2;
+            std::nth_element(idx.begin() + long(b), idx.begin() + long(mid), idx.begin() + long(e), [&](uint32_t a, uint32_t c) {
+                const int ka = mBoxes[a].min()[axis], kc = mBoxes[c].min()[axis];
+                return ka != kc ? ka < kc : a < c;
+            });
+            n.left = build(idx, b, mid);
+            n.right = build(idx, mid, e);
+        }
+        mNodes[me] = n;
+        return me;
+    }
+
+    void scanLeaf(uint32_t li, const Vec3d& p, double& best2, Vec3d& hint) const
+    {
+        const ListLeaf& leaf = *mLeaves[li];
+        const Coord o = leaf.origin();
+        const auto& mask = leaf.getValueMask();
+        const int q = mQuarter[li], x0 = (q >> 2) * 4, y0 = ((q >> 1) & 1) * 4, z0 = (q & 1) * 4;
+        for (int x = x0; x < x0 + 4; ++x) {
+            const double dx = o.x() + x + 0.5 - p[0], dx2 = dx * dx;
+            if (dx2 >= best2) continue;
+            const uint64_t w = mask.template getWord<uint64_t>(openvdb::Index(x));
+            if (!w) continue;
+            for (int y = y0; y < y0 + 4; ++y) {
+                uint32_t zb = uint32_t(w >> (8 * y)) & (0xfu << z0);
+                if (!zb) continue;
+                const double dy = o.y() + y + 0.5 - p[1], dxy2 = dx2 + dy * dy;
+                if (dxy2 >= best2) continue;
+                // nearest set z bit to p: scan outward is overkill for 8 bits; check all
+                while (zb) {
+                    const int z = __builtin_ctz(zb);
+                    zb &= zb - 1;
+                    const double dz = o.z() + z + 0.5 - p[2];
+                    const double d2 = dxy2 + dz * dz;
+                    if (d2 < best2) {
+                        best2 = d2;
+                        hint = Vec3d(o.x() + x + 0.5, o.y() + y + 0.5, o.z() + z + 0.5);
+                    }
+                }
+            }
+        }
+    }
+
+    std::vector<const ListLeaf*> mLeaves;
+    std::vector<uint8_t> mQuarter;
+    std::vector<CoordBBox> mBoxes;
+    std::vector<Node> mNodes;
+};
+
+struct PreparedTri { Vec3d a, b, c, lo, hi; uint32_t id; };
+
+/// Cells p + o, o in [-R, R-1+extra]³, sorted by their minimum squared distance from p
+/// (a lattice point, extra = 0) or from any point of the unit cell [p, p+1) (extra = 1).
+struct OffsetTable
+{
+    std::vector<Coord> off;
+    std::vector<int> d2;
+    OffsetTable(int R, int extra)
+    {
+        auto a = [&](int o) { return extra ? (o >= 1 ? o - 1 : (o <= -1 ? -o - 1 : 0)) : (o >= 0 ? o : -o - 1); };
+        std::vector<std::pair<int, Coord>> v;
+        for (int x = -R; x <= R - 1 + extra; ++x)
+            for (int y = -R; y <= R - 1 + extra; ++y)
+                for (int z = -R; z <= R - 1 + extra; ++z) v.push_back({a(x) * a(x) + a(y) * a(y) + a(z) * a(z), Coord(x, y, z)});
+        std::stable_sort(v.begin(), v.end(), [](const auto& l, const auto& r) { return l.first < r.first; });
+        for (auto& e : v) { d2.push_back(e.first); off.push_back(e.second); }
+    }
+};
+
+constexpr int kGather = 4;             // the leaf's region: [o-4, o+12)³
+constexpr int kRegion = 8 + 2 * kGather;
+
+/// Per-thread scratch of the mesh provider: the gathered lists of one leaf region.
+struct MeshScratch
+{
+    std::vector<int32_t> cellSlot;       // region cell -> range index or -1
+    std::vector<uint32_t> rangeBegin;    // per marked cell: [begin, end) into cellTris
+    std::vector<uint32_t> cellTris;      // local triangle ids
+    std::vector<PreparedTri> tris;
+    std::vector<uint32_t> stamp, hashKey, hashVal;
+    uint32_t stampValue = 0, lastTri = kNone;
+    Vec3d hint{1e300};
+    uint64_t type1 = 0, type2 = 0, type3 = 0, type2Wide = 0;
+    double type2MaxBound = 0;
+};
+
+struct Nearest { double d2 = std::numeric_limits<double>::infinity(); uint32_t tri = kNone; TriangleClosestPoint cp{}; };
+
+class MeshProvider : public SampleProvider
+{
+public:
+    MeshProvider(const TriangleMesh& mesh, const std::vector<Vec3d>& cellPts, const TriangleListTree& lists,
+                 const PseudoNormals& normals, double h)
+        : mMesh(mesh), mPts(cellPts), mLists(lists), mNormals(normals), mH(h), mBvh(lists.tree()),
+          mLattice(kGather, 0), mReal(kGather, 1)
+    {
+    }
+
+    void gather(const Coord& o, MeshScratch& s) const
+    {
+        s.cellSlot.assign(size_t(kRegion) * kRegion * kRegion, -1);
+        s.rangeBegin.clear();
+        s.cellTris.clear();
+        s.tris.clear();
+        const Coord rmin = o.offsetBy(-kGather), rmax = o.offsetBy(8 + kGather - 1);
+        size_t entries = 0;
+        std::vector<std::pair<int, uint32_t>> cells; // (region index, ordinal)
+        cells.reserve(512);
+        const auto& tree = mLists.tree();
+        for (int lx = rmin.x() & ~7; lx <= rmax.x(); lx += 8)
+            for (int ly = rmin.y() & ~7; ly <= rmax.y(); ly += 8)
+                for (int lz = rmin.z() & ~7; lz <= rmax.z(); lz += 8) {
+                    const auto* leaf = tree.probeConstLeaf(Coord(lx, ly, lz));
+                    if (!leaf) continue;
+                    for (auto it = leaf->cbeginValueOn(); it; ++it) {
+                        const Coord c = it.getCoord();
+                        if (c.x() < rmin.x() || c.x() > rmax.x() || c.y() < rmin.y() || c.y() > rmax.y() ||
+                            c.z() < rmin.z() || c.z() > rmax.z())
+                            continue;
+                        const int idx = ((c.x() - rmin.x()) * kRegion + (c.y() - rmin.y())) * kRegion + (c.z() - rmin.z());
+                        cells.push_back({idx, *it});
+                        entries += mLists.listSize(*it);
+                    }
+                }
+        size_t hsize = 64;
+        while (hsize < 2 * entries) hsize <<= 1;
+        const uint32_t hmask = uint32_t(hsize - 1);
+        s.hashKey.assign(hsize, kNone);
+        s.hashVal.resize(hsize);
+        for (const auto& cell : cells) {
+            s.cellSlot[size_t(cell.first)] = int32_t(s.rangeBegin.size());
+            s.rangeBegin.push_back(uint32_t(s.cellTris.size()));
+            for (const uint32_t* t = mLists.listBegin(cell.second); t != mLists.listEnd(cell.second); ++t) {
+                uint32_t h = (*t * 2654435761u) & hmask;
+                while (s.hashKey[h] != kNone && s.hashKey[h] != *t) h = (h + 1) & hmask;
+                if (s.hashKey[h] == kNone) {
+                    s.hashKey[h] = *t;
+                    s.hashVal[h] = uint32_t(s.tris.size());
+                    const Vec3I& tri = mMesh.triangles[*t];
+                    const Vec3d& a = mPts[tri[0]];
+                    const Vec3d& b = mPts[tri[1]];
+                    const Vec3d& c = mPts[tri[2]];
+                    s.tris.push_back({a, b, c, minComponent(minComponent(a, b), c), maxComponent(maxComponent(a, b), c), *t});
+                }
+                s.cellTris.push_back(s.hashVal[h]);
+            }
+        }
+        s.rangeBegin.push_back(uint32_t(s.cellTris.size()));
+        s.stamp.assign(s.tris.size(), 0u);
+        s.stampValue = 0;
+        s.lastTri = kNone;
+    }
+
+    /// Nearest gathered triangle to q (index space); `base` = the lattice point (local to the
+    /// region's corner o-4) the offsets are relative to. Exact when the result is <= kGather.
+    Nearest nearest(const Vec3d& q, const Coord& baseLocal, const OffsetTable& table, MeshScratch& s) const
+    {
+        Nearest best;
+        if (++s.stampValue == 0) { std::fill(s.stamp.begin(), s.stamp.end(), 0u); s.stampValue = 1; }
+        if (s.lastTri < s.tris.size()) { // seed: the previous sample's nearest triangle (an upper bound)
+            const PreparedTri& pt = s.tris[s.lastTri];
+            s.stamp[s.lastTri] = s.stampValue;
+            best.cp = closestPointOnTriangle(q, pt.a, pt.b, pt.c);
+            best.d2 = best.cp.distanceSqr;
+            best.tri = s.lastTri;
+        }
+        const size_t n = table.off.size();
+        for (size_t k = 0; k < n; ++k) {
+            if (double(table.d2[k]) >= best.d2) break;
+            const Coord r = baseLocal + table.off[k];
+            const int32_t slot = s.cellSlot[size_t((r.x() * kRegion + r.y()) * kRegion + r.z())];
+            if (slot < 0) continue;
+            for (uint32_t j = s.rangeBegin[size_t(slot)]; j < s.rangeBegin[size_t(slot) + 1]; ++j) {
+                const uint32_t t = s.cellTris[j];
+                if (s.stamp[t] == s.stampValue) continue;
+                s.stamp[t] = s.stampValue;
+                const PreparedTri& pt = s.tris[t];
+                if (boxDistanceSqr(q, pt.lo, pt.hi) >= best.d2) continue;
+                const TriangleClosestPoint cp = closestPointOnTriangle(q, pt.a, pt.b, pt.c);
+                if (cp.distanceSqr < best.d2) { best.d2 = cp.distanceSqr; best.tri = t; best.cp = cp; }
+            }
+        }
+        s.lastTri = best.tri;
+        return best;
+    }
+
+    /// Signed distance (world) from a nearest-triangle result; pseudonormal sign.
+    double signedWorld(const Nearest& nb, const Vec3d& q, const MeshScratch& s) const
+    {
+        const double d = std::sqrt(nb.d2) * mH;
+        return mNormals.isInside(s.tris[nb.tri].id, nb.cp, q) ? -d : d;
+    }
+
+    /// Signed distance (world) from the gathered triangles, with its certificate (voxels): exact
+    /// when the nearest gathered triangle is within kGather cells (every closer triangle would
+    /// be listed in the region). Otherwise the true distance lies in [max(kGather, e - √3/2),
+    /// min(d̃, e + √3/2)] with e the distance to the nearest boundary-cell centre (every
+    /// surface point lies in a boundary cell, within √3/2 of its centre); the midpoint is
+    /// returned. The sign is the pseudonormal's at the nearest gathered point: the segment to it
+    /// stays in the (convex) region, so it crosses no triangle first.
+    double certified(const Nearest& nb, const Vec3d& q, MeshScratch& s, double& cert) const
+    {
+        const double dt = std::sqrt(nb.d2);
+        const double sgn = mNormals.isInside(s.tris[nb.tri].id, nb.cp, q) ? -1.0 : 1.0;
+        if (dt <= double(kGather)) { cert = 0; return sgn * dt * mH; }
+        ++s.type2Wide;
+        const double e = std::sqrt(mBvh.nearest2(q, s.hint)), r3 = std::sqrt(3.0) / 2;
+        const double lo = std::max(double(kGather), e - r3), hi = std::min(dt, e + r3);
+        cert = std::max(0.0, 0.5 * (hi - lo));
+        return sgn * 0.5 * (lo + hi) * mH;
+    }
+
+    /// Type-3 estimator (world, signed by the flood-filled type-1 band at lattice point `signAt`).
+    double estimate(const Vec3d& q, const Coord& signAt, Vec3d& hint) const
+    {
+        const double d = std::sqrt(mBvh.nearest2(q, hint)) * mH;
+        return insideAt(signAt) ? -d : d;
+    }
+
+    bool insideAt(const Coord& p) const
+    {
+        auto& acc = mT1Acc.local();
+        if (!acc) acc.reset(new openvdb::tree::ValueAccessor<const FloatTree, false>(*mType1));
+        return acc->getValue(p) < 0.0f;
+    }
+
+    void leafSamples(size_t, FloatLeaf& leaf, const uint8_t* isFree, float* out) override
+    {
+        MeshScratch& s = mScratch.local();
+        const Coord o = leaf.origin();
+        gather(o, s);
+        FloatLeaf* t1 = nullptr;
+        for (int off = 0; off < 512; ++off) {
+            if (!isFree[off]) continue;
+            const int x = off >> 6, y = (off >> 3) & 7, z = off & 7;
+            const Coord local(x + kGather, y + kGather, z + kGather);
+            bool type1 = false;
+            for (int d = 0; d < 8 && !type1; ++d) {
+                const Coord c = local - Coord((d >> 2) & 1, (d >> 1) & 1, d & 1);
+                type1 = s.cellSlot[size_t((c.x() * kRegion + c.y()) * kRegion + c.z())] >= 0;
+            }
+            const Vec3d q(o.x() + x, o.y() + y, o.z() + z);
+            const Nearest nb = nearest(q, local, mLattice, s);
+            if (nb.tri == kNone) {
+                // nothing within the region (refinement leaves far from the surface): type-3 rule.
+                // The flood-fill tree is not there yet: signs are fixed in afterLeaves().
+                out[off] = float(std::sqrt(mBvh.nearest2(q, s.hint)) * mH);
+                mDeferredSign.local().push_back(&out[off]);
+                ++s.type3;
+                continue;
+            }
+            double cert = 0;
+            const double v = certified(nb, q, s, cert);
+            out[off] = float(v);
+            if (type1) {
+                ++s.type1;
+                if (!t1) t1 = new FloatLeaf(o, 0.0f, false);
+                t1->setValueOn(openvdb::Index(off), float(v));
+            } else {
+                ++s.type2;
+                s.type2MaxBound = std::max(s.type2MaxBound, cert);
+            }
+        }
+        if (t1) mType1Leaves.local().push_back(t1);
+    }
+
+    void afterLeaves(FloatTree& adfTree) override
+    {
+        const auto t0 = Clock::now();
+        mType1 = std::make_shared<FloatTree>(1e30f);
+        std::vector<FloatLeaf*> all;
+        for (auto& v : mType1Leaves) all.insert(all.end(), v.begin(), v.end());
+        std::sort(all.begin(), all.end(), [](const FloatLeaf* a, const FloatLeaf* b) { return a->origin() < b->origin(); });
+        for (FloatLeaf* l : all) mType1->addLeaf(l);
+        mType1Leaves.clear();
+        openvdb::tools::signedFloodFill(*mType1);
+        mT1Acc.clear();
+        fixDeferred(adfTree);
+        secondsSignFill = secondsSince(t0);
+    }
+
+    void fixDeferred(FloatTree& adfTree)
+    {
+        // map buffer pointers back to coordinates leaf by leaf
+        bool any = false;
+        for (auto& v : mDeferredSign) any |= !v.empty();
+        if (!any) return;
+        std::vector<float*> ptrs;
+        for (auto& v : mDeferredSign) ptrs.insert(ptrs.end(), v.begin(), v.end());
+        std::sort(ptrs.begin(), ptrs.end());
+        openvdb::tree::ValueAccessor<const FloatTree, false> acc(*mType1);
+        for (auto it = adfTree.beginLeaf(); it; ++it) {
+            float* b = it->buffer().data();
+            auto lo = std::lower_bound(ptrs.begin(), ptrs.end(), b);
+            for (; lo != ptrs.end() && *lo < b + 512; ++lo) {
+                const Coord p = it->offsetToGlobalCoord(openvdb::Index(*lo - b));
+                if (acc.getValue(p) < 0.0f) **lo = -std::abs(**lo);
+            }
+        }
+        mDeferredSign.clear();
+    }
+
+    double tileSample(const Coord& p) override
+    {
+        MeshScratch& s = mScratch.local();
+        ++s.type3;
+        return estimate(Vec3d(p.x(), p.y(), p.z()), p, s.hint);
+    }
+
+    // --- bounds (Frisken test points) -------------------------------------------------------
+    /// Reference value of the sample function at a point of a leaf cell, world, with its own
+    /// bound (world).
+    double leafReference(const Vec3d& q, const Coord& o, MeshScratch& s, double& fBound) const
+    {
+        Coord base(int(std::floor(q[0])), int(std::floor(q[1])), int(std::floor(q[2])));
+        for (int k = 0; k < 3; ++k) base[k] = std::min(base[k], o[k] + 7);
+        const Coord local = base - o + Coord(kGather);
+        const Nearest nb = nearest(q, local, mReal, s);
+        if (nb.tri == kNone) {
+            fBound = std::sqrt(3.0) / 2 * mH;
+            return estimate(q, base, s.hint);
+        }
+        double cert = 0;
+        const double v = certified(nb, q, s, cert);
+        fBound = cert * mH;
+        return v;
+    }
+
+    const TriangleMesh& mMesh;
+    const std::vector<Vec3d>& mPts;
+    const TriangleListTree& mLists;
+    const PseudoNormals& mNormals;
+    double mH;
+    CentreBvh mBvh;
+    OffsetTable mLattice, mReal;
+    tbb::enumerable_thread_specific<MeshScratch> mScratch;
+    tbb::enumerable_thread_specific<std::vector<FloatLeaf*>> mType1Leaves;
+    tbb::enumerable_thread_specific<std::vector<float*>> mDeferredSign;
+    std::shared_ptr<FloatTree> mType1;
+    mutable tbb::enumerable_thread_specific<std::unique_ptr<openvdb::tree::ValueAccessor<const FloatTree, false>>> mT1Acc;
+    double secondsSignFill = 0;
+
+    ~MeshProvider() override
+    {
+        for (auto& v : mType1Leaves)
+            for (FloatLeaf* l : v) delete l;
+    }
+};
+
+/// Frisken's 19 test points of a cell (centre, face centres, edge midpoints) and its 8
+/// corners, index space; `isCorner` tells which.
+template<typename F>
+void forTestPoints(const CellInfo& X, F&& f)
+{
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+            for (int c = 0; c < 3; ++c)
+                f(Vec3d(X.origin.x() + 0.5 * a * X.size, X.origin.y() + 0.5 * b * X.size, X.origin.z() + 0.5 * c * X.size),
+                  a != 1 && b != 1 && c != 1);
+}
+
+/// Bound of |∇rec| in a cell (world units per world unit): each component of the gradient of a
+/// trilinear function is bilinear in the other two coordinates, so its extreme values are
+/// taken on the 4 cell edges along that axis.
+double gradientBound(Reconstruction& rec, const CellInfo& X, double h)
+{
+    double v[8];
+    for (int k = 0; k < 8; ++k)
+        v[k] = rec.value(X.origin + Coord(((k >> 2) & 1) * X.size, ((k >> 1) & 1) * X.size, (k & 1) * X.size));
+    double g2 = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+        const int bit = 4 >> axis;
+        double m = 0;
+        for (int k = 0; k < 8; ++k)
+            if (!(k & bit)) m = std::max(m, std::abs(v[k | bit] - v[k]));
+        g2 += (m / (X.size * h)) * (m / (X.size * h));
+    }
+    return std::sqrt(g2);
+}
+
+struct BoundAcc
+{
+    std::array<double, kAdfLevels> dev{{-1, -1, -1, -1, -1}};   // Frisken: test points only
+    std::array<double, kAdfLevels> bound{{-1, -1, -1, -1, -1}}; // everywhere in the cell
+    std::vector<std::pair<int, Coord>> failing; // (level, cell origin) over tolerance
+    void add(int level, double testDev, double cellBound)
+    {
+        dev[size_t(level)] = std::max(dev[size_t(level)], testDev);
+        bound[size_t(level)] = std::max(bound[size_t(level)], cellBound);
+    }
+};
+
+/// Checks the reconstruction at the test points of every tile cell (levels 3, 4) and, if
+/// `leafCells`, of the cells inside leaves (level 0: every unitStride-th finest cell). Returns per-level
+/// (deviation + reference bound), in voxels; collects tile cells deviating more than tolWorld.
+struct Bounds { std::array<double, kAdfLevels> testPoints, cells; };
+Bounds checkBounds(const FloatTree& tree, const Layout& layout, MeshProvider& mp, bool leafCells, int unitStride,
+                   double tolWorld, std::vector<std::pair<int, Coord>>* failing)
+{
+    const CoordBBox dom = layout.domain;
+    const double h = mp.mH, e3 = std::sqrt(3.0) / 2 * h;
+    tbb::enumerable_thread_specific<BoundAcc> accs;
+    // tile cells
+    std::vector<CellInfo> tileCells;
+    for (const Coord& b : layout.subdividedL2) {
+        const Internal1* n1 = tree.root().template probeConstNode<Internal1>(b);
+        if (!n1 || !inDomainCell(dom, b)) continue;
+        for (openvdb::Index n = 0; n < Internal1::NUM_VALUES; ++n)
+            if (!n1->isChildMaskOn(n)) tileCells.push_back({8, n1->offsetToGlobalCoord(n)});
+    }
+    for (const Coord& b : layout.tileL2)
+        if (inDomainCell(dom, b)) tileCells.push_back({128, b});
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, tileCells.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+        Reconstruction rec(tree, dom);
+        BoundAcc& acc = accs.local();
+        MeshScratch& s = mp.mScratch.local();
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const CellInfo X = tileCells[i];
+            double worst = 0, worstTest = 0;
+            forTestPoints(X, [&](const Vec3d& q, bool corner) {
+                const double f = mp.estimate(q, X.origin, s.hint);
+                const double dev = std::abs(rec.distanceIndex(q, nullptr, nullptr) - f);
+                worst = std::max(worst, dev);
+                if (!corner) worstTest = std::max(worstTest, dev);
+            });
+            const double lip = (1.0 + gradientBound(rec, X, h)) * std::sqrt(3.0) / 4 * X.size * h;
+            acc.add(levelOfSize(X.size), worstTest + e3, worst + e3 + lip);
+            if (tolWorld > 0 && worstTest > tolWorld) acc.failing.push_back({levelOfSize(X.size), X.origin});
+        }
+    });
+    if (leafCells) {
+        const size_t nLeaves = layout.leafOrigins.size();
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, nLeaves, 4), [&](const tbb::blocked_range<size_t>& r) {
+            Reconstruction rec(tree, dom);
+            BoundAcc& acc = accs.local();
+            MeshScratch& s = mp.mScratch.local();
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+                const Coord o = layout.leafOrigins[i];
+                mp.gather(o, s);
+                int unitCounter = 0;
+                for (int x = 0; x < 8; ++x)
+                    for (int y = 0; y < 8; ++y)
+                        for (int z = 0; z < 8; ++z) {
+                            const Coord c = o + Coord(x, y, z);
+                            const CellInfo X = rec.cellAt(c);
+                            if (X.origin != c) continue; // visit each cell once, at its origin
+                            if (X.size == 1 && (unitCounter++ % unitStride) != 0) continue;
+                            double worst = 0, worstTest = 0;
+                            forTestPoints(X, [&](const Vec3d& q, bool corner) {
+                                double fb = 0;
+                                const double f = mp.leafReference(q, o, s, fb);
+                                const double dev = std::abs(rec.distanceIndex(q, nullptr, nullptr) - f) + fb;
+                                worst = std::max(worst, dev);
+                                if (!corner) worstTest = std::max(worstTest, dev);
+                            });
+                            const double lip = (1.0 + gradientBound(rec, X, h)) * std::sqrt(3.0) / 4 * X.size * h;
+                            acc.add(levelOfSize(X.size), worstTest, worst + lip);
+                        }
+            }
+        });
+    }
+    Bounds out;
+    out.testPoints.fill(-1);
+    out.cells.fill(-1);
+    for (const BoundAcc& a : accs) {
+        for (int l = 0; l < kAdfLevels; ++l) {
+            out.testPoints[size_t(l)] = std::max(out.testPoints[size_t(l)], a.dev[size_t(l)]);
+            out.cells[size_t(l)] = std::max(out.cells[size_t(l)], a.bound[size_t(l)]);
+        }
+        if (failing) failing->insert(failing->end(), a.failing.begin(), a.failing.end());
+    }
+    for (int l = 0; l < kAdfLevels; ++l) {
+        if (out.testPoints[size_t(l)] >= 0) out.testPoints[size_t(l)] /= h;
+        if (out.cells[size_t(l)] >= 0) out.cells[size_t(l)] /= h;
+    }
+    if (failing) std::sort(failing->begin(), failing->end());
+    return out;
+}
+
+} // namespace
+
+} // namespace adf_internal
+
+// ================================================================================ public API
+
+using namespace adf_internal;
+
+AdaptiveDistanceField::AdaptiveDistanceField(openvdb::FloatGrid::ConstPtr grid)
+{
+    if (!grid) throw InvalidArgumentError("ADF: null grid");
+    if (!isAdaptiveDistanceField(*grid))
+        throw InvalidArgumentError("grid '" + grid->getName() + "' is not a levelforge ADF (no \"" + kAdfMetaKey + "\" metadata)");
+    const auto lo = grid->getMetadata<openvdb::Vec3IMetadata>("levelforge:adf_domain_min");
+    const auto hi = grid->getMetadata<openvdb::Vec3IMetadata>("levelforge:adf_domain_max");
+    if (!lo || !hi) throw InvalidArgumentError("ADF grid '" + grid->getName() + "': missing domain metadata");
+    mDomain = CoordBBox(Coord(lo->value()), Coord(hi->value()));
+    for (int k = 0; k < 3; ++k)
+        if (mDomain.min()[k] % 128 || mDomain.max()[k] % 128 || mDomain.max()[k] <= mDomain.min()[k])
+            throw InvalidArgumentError("ADF grid '" + grid->getName() + "': domain is not made of whole 128^3 blocks");
+    if (!grid->hasUniformVoxels() || !grid->transform().isLinear())
+        throw InvalidArgumentError("ADF grid '" + grid->getName() + "': transform must be linear with cubic voxels");
+    mH = grid->voxelSize()[0];
+    for (int l = 0; l < kAdfLevels; ++l) {
+        char key[64];
+        std::snprintf(key, sizeof(key), "levelforge:adf_bound_level%d_voxels", l);
+        if (const auto m = grid->getMetadata<openvdb::DoubleMetadata>(key)) mBounds[size_t(l)] = m->value();
+    }
+    mGrid = grid;
+}
+
+openvdb::BBoxd AdaptiveDistanceField::worldDomain() const
+{
+    return openvdb::BBoxd(mGrid->indexToWorld(mDomain.min()), mGrid->indexToWorld(mDomain.max()));
+}
+
+namespace {
+inline Vec3d toIndex(const openvdb::FloatGrid& g, const Vec3d& w) { return g.worldToIndex(w); }
+} // namespace
+
+double AdaptiveDistanceField::distance(const Vec3d& worldPoint) const
+{
+    Reconstruction rec(mGrid->tree(), mDomain);
+    return rec.distanceIndex(toIndex(*mGrid, worldPoint), nullptr, nullptr);
+}
+
+Vec3d AdaptiveDistanceField::gradient(const Vec3d& worldPoint) const
+{
+    Reconstruction rec(mGrid->tree(), mDomain);
+    Vec3d g;
+    rec.distanceIndex(toIndex(*mGrid, worldPoint), &g, nullptr);
+    return g / mH;
+}
+
+int AdaptiveDistanceField::level(const Vec3d& worldPoint) const
+{
+    const Vec3d q = toIndex(*mGrid, worldPoint);
+    for (int k = 0; k < 3; ++k)
+        if (q[k] < mDomain.min()[k] || q[k] > mDomain.max()[k]) return -1;
+    Reconstruction rec(mGrid->tree(), mDomain);
+    int l = -1;
+    rec.distanceIndex(q, nullptr, &l);
+    return l;
+}
+
+double AdaptiveDistanceField::latticeValue(const openvdb::Coord& ijk) const
+{
+    Reconstruction rec(mGrid->tree(), mDomain);
+    return rec.value(ijk);
+}
+
+bool isAdaptiveDistanceField(const openvdb::GridBase& grid)
+{
+    return bool(grid.getMetadata<openvdb::StringMetadata>(kAdfMetaKey)) && grid.isType<openvdb::FloatGrid>();
+}
+
+AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& mesh, const AdaptiveDistanceFieldOptions& options,
+                                                  AdaptiveDistanceFieldStats* statsOut)
+{
+    openvdb::initialize();
+    AdaptiveDistanceFieldStats stats;
+    auto* interrupter = options.interrupter;
+    if (!std::isfinite(options.paddingVoxels) || options.paddingVoxels < 0)
+        throw InvalidArgumentError("ADF padding must be a finite number of voxels >= 0");
+    if (!std::isfinite(options.toleranceVoxels) || options.toleranceVoxels < 0)
+        throw InvalidArgumentError("ADF tolerance must be a finite number of voxels >= 0 (0 = no refinement)");
+    requireUsableMesh(mesh);
+    MeshToLevelSetOptions lsOpt;
+    lsOpt.voxelSize = options.voxelSize;
+    lsOpt.voxelCount = options.voxelCount;
+    const double h = resolveVoxelSize(mesh, lsOpt);
+    stats.voxelSize = h;
+    const BBoxd bounds = mesh.bounds();
+    for (int k = 0; k < 3; ++k) {
+        const double lo = bounds.min()[k] / h - 1024, hi = bounds.max()[k] / h + 1024;
+        if (!(std::abs(lo) < 1.0e9 && std::abs(hi) < 1.0e9))
+            throw ResourceLimitError("voxel size is too small for this mesh: index coordinates would exceed 1e9");
+    }
+    if (interrupter) interrupter->start("mesh to ADF");
+
+    // ---- voxelization + triangle lists (cell space = index space: cell c = [c, c+1)³)
+    const auto t0 = Clock::now();
+    std::vector<Vec3d> cellPts(mesh.points.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, cellPts.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) cellPts[i] = mesh.points[i] / h;
+    });
+    PseudoNormals normals(mesh);
+    std::vector<uint32_t> use;
+    use.reserve(mesh.triangles.size());
+    for (uint32_t t = 0; t < mesh.triangles.size(); ++t)
+        if (!normals.isDegenerate(t)) use.push_back(t);
+    if (use.empty()) throw InvalidMeshError((mesh.source.empty() ? std::string("mesh") : mesh.source) + ": every triangle is degenerate");
+    stats.triangles = use.size();
+    // domain guard before the voxelization (the bounding box decides the domain)
+    {
+        uint64_t dense = 1;
+        for (int k = 0; k < 3; ++k) {
+            const double ext = (bounds.max()[k] - bounds.min()[k]) / h + 2.0 * std::max(9.0, options.paddingVoxels) + 256;
+            dense = uint64_t(double(dense) * ext);
+        }
+        if (options.maxVoxels && dense > options.maxVoxels * 2) {
+            std::ostringstream os;
+            os << "the ADF domain would span about " << dense << " finest voxels, more than the limit of " << options.maxVoxels
+               << "; use a larger voxel size";
+            throw ResourceLimitError(os.str());
+        }
+    }
+    TriangleListTree lists = TriangleListTree::build(cellPts, mesh.triangles, use, nullptr, interrupter);
+    stats.boundaryCells = lists.cellCount();
+    stats.secondsVoxelize = secondsSince(t0);
+    progress_internal::check(interrupter, 20);
+
+    // ---- octree: M' = M dilated by one cell; leaves, internal-1 nodes, tiles
+    const auto t1 = Clock::now();
+    Layout base;
+    {
+        openvdb::MaskTree mp(lists.tree(), false, openvdb::TopologyCopy());
+        openvdb::tools::dilateActiveValues(mp, 1, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::IGNORE_TILES);
+        for (auto it = mp.cbeginLeaf(); it; ++it) {
+            base.leafOrigins.push_back(it->origin());
+            base.leafMasks.push_back(it->getValueMask());
+        }
+        CoordBBox mbox;
+        lists.tree().evalActiveVoxelBoundingBox(mbox);
+        makeDomain(base, mbox, options.paddingVoxels);
+    }
+    const Coord dim = base.domain.dim();
+    const double domainVoxels = double(dim.x() - 1) * double(dim.y() - 1) * double(dim.z() - 1);
+    if (options.maxVoxels && domainVoxels > double(options.maxVoxels)) {
+        std::ostringstream os;
+        os << "the ADF domain spans " << uint64_t(domainVoxels) << " finest voxels, more than the limit of " << options.maxVoxels;
+        throw ResourceLimitError(os.str());
+    }
+    stats.domainVoxels = uint64_t(domainVoxels);
+    stats.secondsOctree = secondsSince(t1);
+
+    MeshProvider provider(mesh, cellPts, lists, normals, h);
+    const float background = float(std::sqrt(3.0) * double(dim.x() + dim.y() + dim.z()) * h);
+    std::vector<Coord> forcedLeaves, forcedL2;
+    FloatTree::Ptr tree;
+    Layout layout;
+    PipelineResult pr;
+    std::array<double, kAdfLevels> bound{{-1, -1, -1, -1, -1}};
+    for (int iteration = 0;; ++iteration) {
+        const auto t2 = Clock::now();
+        layout = base;
+        LeafMask full;
+        full.setOn();
+        for (const Coord& o : forcedLeaves) { layout.leafOrigins.push_back(o); layout.leafMasks.push_back(full); }
+        layout.subdividedL2 = forcedL2;
+        layout.finish();
+        tree = createTree(layout, background);
+        stats.secondsOctree += secondsSince(t2);
+        for (auto& s : provider.mScratch) { s.type1 = s.type2 = s.type3 = s.type2Wide = 0; s.type2MaxBound = 0; }
+        pr = fillValues(*tree, layout, provider, interrupter);
+        progress_internal::check(interrupter, 80);
+        if (options.toleranceVoxels <= 0 || iteration >= 8) break;
+        std::vector<std::pair<int, Coord>> failing;
+        const auto t3 = Clock::now();
+        checkBounds(*tree, layout, provider, false, 1, options.toleranceVoxels * h, &failing);
+        stats.secondsBounds += secondsSince(t3);
+        if (failing.empty()) break;
+        for (const auto& f : failing) {
+            if (f.first == 4) forcedL2.push_back(f.second);
+            else forcedLeaves.push_back(f.second);
+            ++stats.refinedTiles;
+        }
+    }
+    for (const MeshScratch& s : provider.mScratch) {
+        stats.type1 += s.type1;
+        stats.type2 += s.type2;
+        stats.type3 += s.type3;
+        stats.type2Wide += s.type2Wide;
+        stats.type2MaxBoundVoxels = std::max(stats.type2MaxBoundVoxels, s.type2MaxBound);
+    }
+    stats.hanging = pr.hanging;
+    stats.leaves = layout.leafOrigins.size();
+    stats.level1Tiles = pr.level1Tiles;
+    stats.level2Tiles = pr.level2Tiles;
+    // Table 1 split: the leaf pass computes type-1 and type-2 together; split by count.
+    const double leafSec = pr.secondsLeaves;
+    const double n12 = double(stats.type1 + stats.type2);
+    stats.secondsType1 = n12 > 0 ? leafSec * double(stats.type1) / n12 : 0;
+    stats.secondsType2 = leafSec - stats.secondsType1;
+    stats.secondsType3 = pr.secondsTiles + provider.secondsSignFill;
+    stats.secondsFinish = pr.secondsHanging;
+
+    if (options.computeBounds) {
+        const auto t4 = Clock::now();
+        const Bounds b = checkBounds(*tree, layout, provider, true, std::max(1, options.boundStride), 0.0, nullptr);
+        bound = b.cells;
+        stats.levelTestPointVoxels = b.testPoints;
+        stats.secondsBounds += secondsSince(t4);
+    }
+    stats.levelBoundVoxels = bound;
+    {
+        Reconstruction rec(*tree, layout.domain);
+        for (size_t i = 0; i < layout.leafOrigins.size(); ++i) {
+            const Coord o = layout.leafOrigins[i];
+            for (int x = 0; x < 8; ++x)
+                for (int y = 0; y < 8; ++y)
+                    for (int z = 0; z < 8; ++z) {
+                        const Coord c = o + Coord(x, y, z);
+                        const CellInfo X = rec.cellAt(c);
+                        if (X.origin == c) ++stats.cells[size_t(levelOfSize(X.size))];
+                    }
+        }
+        stats.cells[3] = pr.cells[3];
+        stats.cells[4] = pr.cells[4];
+    }
+
+    auto grid = openvdb::FloatGrid::create(tree);
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(h));
+    grid->setName(options.gridName);
+    stampAdfMetadata(*grid, layout.domain, bound);
+    grid->insertMeta("levelforge:source", openvdb::StringMetadata(mesh.source));
+    grid->insertMeta("levelforge:method", openvdb::StringMetadata("yin2011-adf"));
+    stats.memoryBytes = tree->memUsage();
+    if (interrupter) { interrupter->wasInterrupted(100); interrupter->end(); }
+    if (statsOut) *statsOut = stats;
+    return AdaptiveDistanceField(grid);
+}
+
+} // namespace levelforge
