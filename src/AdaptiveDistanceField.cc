@@ -81,6 +81,13 @@ bool Reconstruction::stored(const Coord& p, float& v)
         v = mAcc.getValue(p);
         return true;
     }
+    // No node holds p: the tree was collapsed (e.g. pruned by another tool), and a root tile
+    // covers it. A 128-aligned point is then a stored coarse sample (the tile's value), which
+    // also ends the recursion of value() -> cellAt() -> value() for such points.
+    if (!((p.x() & 127) || (p.y() & 127) || (p.z() & 127))) {
+        v = mAcc.getValue(p);
+        return true;
+    }
     return false;
 }
 

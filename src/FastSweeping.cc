@@ -3,6 +3,7 @@
 #include <levelforge/VectorExpansion.h>
 
 #include <levelforge/Exceptions.h>
+#include <levelforge/MeshValidation.h>
 #include <levelforge/Progress.h>
 
 #include <openvdb/tools/ChangeBackground.h>
@@ -570,6 +571,7 @@ openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
         vector_expansion_internal::ShellVectors shell;
         shell.points = opt.closestPoints;
         if (opt.closestPoints && opt.closestTriangles && opt.mesh) {
+            requireUsableMesh(*opt.mesh); // indices in range, finite points, not empty
             shell.triangles = opt.closestTriangles;
             shell.mesh = opt.mesh;
         }

@@ -167,40 +167,44 @@ public:
 
     const std::vector<Tri>& triangles() const { return mTris; }
 
-    /// Exact closest point of the surface to voxel (i, j, k): cells in growing windows.
+    /// Exact closest point of the surface to voxel (i, j, k): cells in growing windows whose
+    /// half-width per axis follows a world radius (so anisotropic spacing costs nothing extra),
+    /// until no cell outside the window can hold a closer point.
     bool closestPoint(int i, int j, int k, Vec3d& q, double& d2) const
     {
         const Vec3d p = mF.worldPosition(i, j, k);
         const double hmin = std::min({mF.spacing[0], mF.spacing[1], mF.spacing[2]});
+        const int c[3] = {i, j, k};
         d2 = std::numeric_limits<double>::infinity();
-        int done = -1; // cells within Chebyshev radius `done` already searched
-        for (int r = 2; r <= 64; r = r < 4 ? r + 1 : r * 2) {
-            for (int ck = k - r; ck < k + r; ++ck) {
-                if (ck < 0 || ck >= mCellDims.z()) continue;
-                for (int cj = j - r; cj < j + r; ++cj) {
-                    if (cj < 0 || cj >= mCellDims.y()) continue;
-                    for (int ci = i - r; ci < i + r; ++ci) {
-                        if (ci < 0 || ci >= mCellDims.x()) continue;
-                        if (done >= 0 && ci >= i - done && ci < i + done && cj >= j - done && cj < j + done &&
-                            ck >= k - done && ck < k + done)
-                            continue;
-                        const size_t c = cellIndex(ci, cj, ck);
-                        for (uint64_t t = mCellBegin[c]; t < mCellBegin[c + 1]; ++t) {
+        int prev[3] = {-1, -1, -1}; // half-widths of the window already searched (-1: none)
+        for (double radius = 2.0 * hmin;; radius *= 1.5) {
+            int hw[3];
+            bool covers = true;
+            for (int a = 0; a < 3; ++a) {
+                hw[a] = std::max(2, int(std::ceil(radius / mF.spacing[a])));
+                covers = covers && c[a] - hw[a] <= 0 && c[a] + hw[a] >= mCellDims[a];
+            }
+            const int lo[3] = {std::max(0, c[0] - hw[0]), std::max(0, c[1] - hw[1]), std::max(0, c[2] - hw[2])};
+            const int hi[3] = {std::min(mCellDims[0], c[0] + hw[0]), std::min(mCellDims[1], c[1] + hw[1]),
+                               std::min(mCellDims[2], c[2] + hw[2])};
+            for (int ck = lo[2]; ck < hi[2]; ++ck)
+                for (int cj = lo[1]; cj < hi[1]; ++cj)
+                    for (int ci = lo[0]; ci < hi[0]; ++ci) {
+                        if (prev[0] >= 0 && ci >= i - prev[0] && ci < i + prev[0] && cj >= j - prev[1] &&
+                            cj < j + prev[1] && ck >= k - prev[2] && ck < k + prev[2])
+                            continue; // searched in an earlier window
+                        const size_t cell = cellIndex(ci, cj, ck);
+                        for (uint64_t t = mCellBegin[cell]; t < mCellBegin[cell + 1]; ++t) {
                             Vec3d cp;
                             const double e2 = triDistance2(p, mTris[t], cp);
                             if (e2 < d2) { d2 = e2; q = cp; }
                         }
                     }
-                }
-            }
-            done = r;
-            // a cell outside the window [i-r, i+r)^3 spans at most up to i-r (or starts at
-            // i+r) on some axis: it is at least r samples away
-            const double reach = double(r) * hmin;
-            if (d2 <= reach * reach) return true;
-            if (i - r < 0 && j - r < 0 && k - r < 0 && i + r >= mCellDims.x() && j + r >= mCellDims.y() &&
-                k + r >= mCellDims.z())
-                break; // the whole volume is searched
+            for (int a = 0; a < 3; ++a) prev[a] = hw[a];
+            // a cell outside the window [c-hw, c+hw) on axis a is at least hw[a] samples away
+            double reach = std::numeric_limits<double>::infinity();
+            for (int a = 0; a < 3; ++a) reach = std::min(reach, double(hw[a]) * mF.spacing[a]);
+            if (d2 <= reach * reach || covers) break;
         }
         return std::isfinite(d2);
     }
@@ -241,6 +245,7 @@ private:
 
 MaskVolume insideFlags(const ScalarVolume& field, const SubvoxelShellOptions& options)
 {
+    requireValidVolume(field, "inside flags");
     MaskVolume m(field.dims, 0, field.spacing, field.origin);
     const float iso = options.iso;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, field.data.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {

@@ -62,10 +62,20 @@ ChamferMetric chamferMetric(VolumeDistanceMethod m)
 void checkOptions(const ScalarVolume& f, const VolumeToLevelSetOptions& o)
 {
     if (f.empty()) throw InvalidArgumentError("volume to level set: the volume is empty");
+    requireValidVolume(f, "volume to level set");
     if (o.maxVoxels && f.voxelCount() > o.maxVoxels)
         throw ResourceLimitError("volume to level set: the volume has " + std::to_string(f.voxelCount()) +
                                  " samples, more than the limit of " + std::to_string(o.maxVoxels));
     if (!std::isfinite(o.iso)) throw InvalidArgumentError("volume to level set: the iso-value must be finite");
+    for (size_t i = 0; i < f.data.size(); ++i) {
+        if (std::isnan(f.data[i])) {
+            const size_t nx = size_t(f.dims.x()), ny = size_t(f.dims.y());
+            std::ostringstream os;
+            os << "volume to level set: sample (" << i % nx << ", " << (i / nx) % ny << ", " << i / (nx * ny)
+               << ") is NaN";
+            throw InvalidArgumentError(os.str());
+        }
+    }
     auto width = [](double w, const char* name) {
         if (!(w > 0.0) || !std::isfinite(w)) {
             std::ostringstream os;

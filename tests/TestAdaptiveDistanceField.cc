@@ -11,6 +11,8 @@
 #include <levelforge/MeshToLevelSet.h>
 #include <levelforge/VdbIO.h>
 
+#include <openvdb/tools/Prune.h>
+
 #include <tbb/global_control.h>
 
 #if __has_include("OperatorRegistry.h")
@@ -157,6 +159,22 @@ TEST(AdaptiveDistanceField, FarFieldInLevel2Tiles)
     EXPECT_GT(b.stats.level2Tiles, 0u);
     for (int l = 0; l < kAdfLevels; ++l) EXPECT_GE(b.stats.levelBoundVoxels[size_t(l)], 0.0) << l;
     checkAgainstExact(b, "far field", 6000);
+}
+
+TEST(AdaptiveDistanceField, PrunedTreeStillAnswersQueries)
+{
+    // Another tool may collapse uniform nodes (openvdb::tools::prune): 128³ blocks then become
+    // root tiles. Queries must keep working and give the same values.
+    const Built b = build(makeIcosphere(Vec3d(3.2, 3.3, 3.1), 0.3, 3), 0.05, 0.0, 300.0);
+    openvdb::FloatGrid::Ptr copy = b.adf.grid()->deepCopy();
+    openvdb::tools::prune(copy->tree());
+    const AdaptiveDistanceField pruned{openvdb::FloatGrid::ConstPtr(copy)};
+    std::mt19937_64 rng(7);
+    const openvdb::BBoxd box = b.adf.worldDomain();
+    for (int n = 0; n < 2000; ++n) {
+        const Vec3d p = randomIn(rng, box);
+        ASSERT_NEAR(pruned.distance(p), b.adf.distance(p), 1e-5) << p;
+    }
 }
 
 TEST(AdaptiveDistanceField, TorusKnotAndTorusSign)

@@ -108,6 +108,30 @@ TEST(SubvoxelShell, WindowSearchFindsTheBruteForceClosestPoint)
     for (const Vec3d& p : surface.points) EXPECT_LT(std::abs((p - Vec3d(9.7, 10.2, 8.9)).length() - 6.3), 0.1);
 }
 
+TEST(SubvoxelShell, StronglyAnisotropicSpacingStillFindsTheClosestPoint)
+{
+    // CT-like spacing (0.5, 0.5, 5): the search window follows a world radius per axis
+    const Vec3d spacing(0.5, 0.5, 5.0), c(7.6, 8.1, 20.3);
+    const ScalarVolume f = makeSphereField(openvdb::Coord(32, 32, 9), c, 6.0, spacing);
+    const TriangleMesh surface = isoSurfaceTriangles(f, {});
+    const VectorVolume v = subvoxelShell(f, {});
+    uint64_t checked = 0;
+    for (int k = 0; k < f.dims.z(); ++k)
+        for (int j = 0; j < f.dims.y(); j += 3)
+            for (int i = 0; i < f.dims.x(); i += 3) {
+                const ClosestVector& cv = v(i, j, k);
+                if (!std::isfinite(cv.d2)) continue;
+                const Vec3d p = f.worldPosition(i, j, k);
+                double best = std::numeric_limits<double>::infinity();
+                for (const Vec3I& t : surface.triangles)
+                    best = std::min(best, closestPointOnTriangle(p, surface.points[t[0]], surface.points[t[1]],
+                                                                 surface.points[t[2]]).distanceSqr);
+                ASSERT_NEAR(std::sqrt(double(cv.d2)), std::sqrt(best), 1e-4) << i << " " << j << " " << k;
+                ++checked;
+            }
+    EXPECT_GT(checked, 30u);
+}
+
 TEST(SubvoxelShell, AnisotropicSpacingIsExactInWorldUnits)
 {
     const Vec3d spacing(1.0, 1.0, 2.5);

@@ -125,6 +125,20 @@ TEST(VolumeToLevelSet, BadOptionsGiveClearErrors)
     o.maxVoxels = 100;
     EXPECT_THROW(volumeToLevelSet(f, o), ResourceLimitError);
     EXPECT_THROW(volumeDistanceMethodFromName("vcvdt16"), InvalidArgumentError);
+    // a volume whose data does not match its dims, and a NaN sample on the binary path
+    ScalarVolume bad = f;
+    bad.data.resize(100);
+    o.maxVoxels = 0;
+    EXPECT_THROW(volumeToLevelSet(bad, o), InvalidArgumentError);
+    ScalarVolume nan = f;
+    nan(3, 4, 5) = std::nanf("");
+    o.subvoxel = false;
+    try {
+        volumeToLevelSet(nan, o);
+        FAIL() << "NaN accepted";
+    } catch (const InvalidArgumentError& e) {
+        EXPECT_NE(std::string(e.what()).find("(3, 4, 5)"), std::string::npos) << e.what();
+    }
     EXPECT_EQ(volumeDistanceMethodFromName("evdt-grid"), VolumeDistanceMethod::EVDTFullGrid);
 }
 

@@ -38,9 +38,16 @@ ScalarVolume meshField(const TriangleMesh& mesh, int count)
 {
     const BBoxd b = mesh.bounds();
     const Vec3d ext = b.extents();
-    const double h = std::max({ext[0], ext[1], ext[2]}) / double(count - 5);
+    const double longest = std::max({ext[0], ext[1], ext[2]});
+    if (!(longest > 0.0) || !std::isfinite(longest))
+        throw InvalidMeshError(mesh.source + ": the bounding box has zero or non-finite size");
+    const double h = longest / double(count - 5);
     openvdb::Coord dims;
     for (int a = 0; a < 3; ++a) dims[a] = int(std::ceil(ext[a] / h)) + 5;
+    const double samples = double(dims.x()) * double(dims.y()) * double(dims.z());
+    if (samples > double(uint64_t(1) << 31))
+        throw ResourceLimitError(mesh.source + ": " + std::to_string(uint64_t(samples)) +
+                                 " samples at this --voxel-count, more than the limit of 2^31");
     ScalarVolume f(dims, 0.0f, Vec3d(h), b.min() - Vec3d(2.0 * h));
     const ExactReference ref(mesh);
     tbb::parallel_for(tbb::blocked_range<int>(0, dims.z()), [&](const tbb::blocked_range<int>& r) {

@@ -74,7 +74,7 @@ ScalarVolume loadVolumeArg(OperatorArgs& args, const std::string& input, VolumeI
         RawVolumeLayout raw;
         const auto d = parseTriple(args.getString("raw-dims"), "raw-dims");
         for (int a = 0; a < 3; ++a) {
-            if (!(d[a] >= 1) || d[a] != std::floor(d[a]))
+            if (!(d[a] >= 1) || d[a] != std::floor(d[a]) || d[a] > 2147483647.0)
                 throw UsageError("--raw-dims must be three positive integers, got '" + args.getString("raw-dims") + "'");
             raw.dims[a] = int(d[a]);
         }
