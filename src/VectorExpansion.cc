@@ -345,14 +345,11 @@ public:
             return closestPointOnTriangle(p, c[0], c[1], c[2]);
         };
         // try triangle `start` at p; if strictly closer than (best2, bestT), walk downhill from it
-        auto tryFrom = [&](const openvdb::Vec3d& p, int32_t start, double& best2, int32_t& bestT, uint64_t& steps,
-                           uint64_t& ev) {
-            if (start < 0 || uint32_t(start) >= nTris || start == bestT) return false;
-            TriangleClosestPoint cp = closest(p, start, ev);
-            if (!(cp.distanceSqr < best2)) return false;
-            int32_t cur = start;
-            double cur2 = cp.distanceSqr;
-            TriangleFeature curF = cp.feature;
+        // greedy walk downhill from triangle cur (squared distance cur2, closest feature curF):
+        // to a strictly closer triangle across an edge, or around the vertex fan when the
+        // closest point is a vertex (there the edge neighbours tie)
+        auto walkFrom = [&](const openvdb::Vec3d& p, int32_t& cur, double& cur2, TriangleFeature curF,
+                            uint64_t& steps, uint64_t& ev) {
             for (int step = 0; step < 64; ++step) {
                 int32_t next = -1;
                 double next2 = cur2;
@@ -373,8 +370,24 @@ public:
                 curF = nextF;
                 ++steps;
             }
-            best2 = cur2;
-            bestT = cur;
+        };
+        // evaluates the candidate triangles (each once), then walks from the best of them if it
+        // beats (best2, bestT); returns whether it did
+        auto tryBest = [&](const openvdb::Vec3d& p, const int32_t* cand, int n, double& best2, int32_t& bestT,
+                           uint64_t& steps, uint64_t& ev) {
+            int32_t t = -1;
+            double t2 = best2;
+            TriangleFeature f = TriangleFeature::Face;
+            for (int q = 0; q < n; ++q) {
+                const int32_t c = cand[q];
+                if (c < 0 || uint32_t(c) >= nTris || c == bestT) continue;
+                const TriangleClosestPoint cp = closest(p, c, ev);
+                if (cp.distanceSqr < t2) { t2 = cp.distanceSqr; t = c; f = cp.feature; }
+            }
+            if (t < 0) return false;
+            walkFrom(p, t, t2, f, steps, ev);
+            best2 = t2;
+            bestT = t;
             return true;
         };
 
@@ -407,22 +420,20 @@ public:
                         best2 = closest(p, c.tri, evals).distanceSqr;
                         bestT = c.tri;
                     } else {
-                        // the triangles of all 26 neighbours (each distinct one once)
-                        int32_t tried[27];
-                        int nTried = 0;
-                        tried[nTried++] = c.tri;
-                        tryFrom(p, c.tri, best2, bestT, steps, evals);
+                        // own triangle and those of all 26 neighbours (each distinct one once)
+                        int32_t cand[27];
+                        int nc = 0;
+                        cand[nc++] = c.tri;
                         for (int dz = -1; dz <= 1; ++dz)
                             for (int dy = -1; dy <= 1; ++dy)
                                 for (int dx = -1; dx <= 1; ++dx) {
                                     const Cell* nb = cellAt(int32_t(li), i + dx, j + dy, k + dz);
                                     if (!nb || nb->tri < 0) continue;
                                     bool seen = false;
-                                    for (int q = 0; q < nTried && !seen; ++q) seen = tried[q] == nb->tri;
-                                    if (seen) continue;
-                                    tried[nTried++] = nb->tri;
-                                    tryFrom(p, nb->tri, best2, bestT, steps, evals);
+                                    for (int q = 0; q < nc && !seen; ++q) seen = cand[q] == nb->tri;
+                                    if (!seen) cand[nc++] = nb->tri;
                                 }
+                        tryBest(p, cand, nc, best2, bestT, steps, evals);
                     }
                     mRefTri[idx] = bestT;
                     mRefD2[idx] = best2;
@@ -469,12 +480,13 @@ public:
                     const openvdb::Vec3d p = xform.indexToWorld(mLeaves[size_t(li)]->origin().offsetBy(i, j, k));
                     double best2 = mRefD2[idx];
                     int32_t bestT = mRefTri[idx];
-                    bool improved = false;
+                    int32_t cand[6];
+                    int nc = 0;
                     for (const auto& off : kOff) {
                         const size_t q = cellIndexAt(li, i + off[0], j + off[1], k + off[2]);
-                        if (q == size_t(-1) || mRefTri[q] == bestT) continue;
-                        improved |= tryFrom(p, mRefTri[q], best2, bestT, steps, evals);
+                        if (q != size_t(-1) && mRefTri[q] != bestT) cand[nc++] = mRefTri[q];
                     }
+                    const bool improved = tryBest(p, cand, nc, best2, bestT, steps, evals);
                     if (improved) changes.push_back({idx, bestT, best2});
                 }
                 walked += steps;
