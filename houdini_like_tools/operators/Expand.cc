@@ -2,6 +2,7 @@
 // Houdini: *VDB Activate SDF* / *VDB Reshape SDF* (dilate); OpenVDB: tools::dilateSdf.
 #include "Interrupt.h"
 #include "Operator.h"
+#include "OperatorText.h"
 
 #include <levelforge/Exceptions.h>
 #include <levelforge/FastSweeping.h>
@@ -19,20 +20,6 @@ namespace {
 
 const char* const kMethod = "zhao2005-fast-sweeping";
 const char* const kVectorMethod = "satherley-jones-vcvdt8";
-
-std::string fmt(const char* format, double v)
-{
-    char buf[64];
-    std::snprintf(buf, sizeof(buf), format, v);
-    return buf;
-}
-
-std::string withThousands(uint64_t n)
-{
-    std::string s = std::to_string(n);
-    for (int i = int(s.size()) - 3; i > 0; i -= 3) s.insert(size_t(i), ",");
-    return s;
-}
 
 /// The level set to expand: the one named `name`, or the first float level set.
 openvdb::FloatGrid::Ptr pickGrid(const openvdb::GridPtrVec& grids, const std::string& path,

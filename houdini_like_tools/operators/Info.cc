@@ -1,5 +1,6 @@
 // levelforge operator `info`: describe the grids of a .vdb file (like `vdb_print -l`).
 #include "Operator.h"
+#include "OperatorText.h"
 
 #include <levelforge/VdbIO.h>
 
@@ -11,13 +12,6 @@
 
 namespace levelforge::ops {
 namespace {
-
-std::string withThousands(uint64_t n)
-{
-    std::string s = std::to_string(n);
-    for (int i = int(s.size()) - 3; i > 0; i -= 3) s.insert(size_t(i), ",");
-    return s;
-}
 
 std::string bytesText(uint64_t bytes)
 {

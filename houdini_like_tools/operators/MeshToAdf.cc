@@ -2,6 +2,7 @@
 // Yin, Liu, Wu 2011 on the VDB tile hierarchy (AdaptiveDistanceField.h).
 #include "Interrupt.h"
 #include "Operator.h"
+#include "OperatorText.h"
 
 #include <levelforge/AdaptiveDistanceField.h>
 #include <levelforge/Exceptions.h>
@@ -28,13 +29,6 @@ TriangleMesh loadAdfMesh(const std::string& name)
     if (name.rfind("builtin:", 0) == 0)
         throw InvalidArgumentError("unknown built-in mesh '" + name + "' (builtin:torus-knot, builtin:sphere, builtin:box)");
     return readMesh(name);
-}
-
-std::string fmt(const char* format, double v)
-{
-    char buf[64];
-    std::snprintf(buf, sizeof(buf), format, v);
-    return buf;
 }
 
 void cookMeshToAdf(OperatorArgs& args)

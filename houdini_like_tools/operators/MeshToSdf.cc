@@ -2,6 +2,7 @@
 // Houdini: *VDB from Polygons* (distance VDB); vdb_tool: mesh2ls.
 #include "Interrupt.h"
 #include "Operator.h"
+#include "OperatorText.h"
 
 #include <levelforge/Exceptions.h>
 #include <levelforge/FastSweeping.h>
@@ -47,20 +48,6 @@ TriangleMesh loadMesh(const std::string& name, MeshReadInfo& info)
         return mesh;
     }
     return readMesh(name, info);
-}
-
-std::string withThousands(uint64_t n)
-{
-    std::string s = std::to_string(n);
-    for (int i = int(s.size()) - 3; i > 0; i -= 3) s.insert(size_t(i), ",");
-    return s;
-}
-
-std::string fmt(const char* format, double v)
-{
-    char buf[64];
-    std::snprintf(buf, sizeof(buf), format, v);
-    return buf;
 }
 
 void printStats(std::ostream& os, const MeshToLevelSetStats& s)

@@ -3,6 +3,7 @@
 // Houdini: *VDB from Volume* / *Convert VDB* (fog to SDF); vdb_tool: iso-surface to level set.
 #include "Interrupt.h"
 #include "Operator.h"
+#include "OperatorText.h"
 
 #include <levelforge/Exceptions.h>
 #include <levelforge/VdbIO.h>
@@ -21,13 +22,6 @@ namespace levelforge::ops {
 namespace {
 
 const char* const kBuiltinSphere = "builtin:sphere";
-
-std::string fmt(const char* format, double v)
-{
-    char buf[64];
-    std::snprintf(buf, sizeof(buf), format, v);
-    return buf;
-}
 
 std::vector<double> parseTriple(const std::string& text, const char* what)
 {

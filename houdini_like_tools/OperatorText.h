@@ -1,0 +1,26 @@
+// levelforge operators — number formatting shared by the operators' printed summaries.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <string>
+
+namespace levelforge::ops {
+
+/// printf-style formatting of one number, e.g. fmt("%.2f", seconds).
+inline std::string fmt(const char* format, double v)
+{
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), format, v);
+    return buf;
+}
+
+/// 1234567 -> "1,234,567".
+inline std::string withThousands(uint64_t n)
+{
+    std::string s = std::to_string(n);
+    for (int i = int(s.size()) - 3; i > 0; i -= 3) s.insert(size_t(i), ",");
+    return s;
+}
+
+} // namespace levelforge::ops
