@@ -327,8 +327,13 @@ public:
     /// triangles, and the vertex fan when the closest point is a vertex); then Jacobi rounds let
     /// each voxel try the (refined) triangles of its six face neighbours, until no voxel
     /// improves. Double-buffered, so the result does not depend on the thread count.
-    void refine(const TriangleMesh& mesh, const openvdb::math::Transform& xform)
+    void refine(const TriangleMesh& mesh, const openvdb::math::Transform& xform,
+                openvdb::util::NullInterrupter* interrupter)
     {
+        auto checkInterrupt = [&] {
+            if (interrupter && interrupter->wasInterrupted())
+                throw InterruptedError("interrupted while refining the expanded distances");
+        };
         const size_t n = mCells.size();
         const uint32_t nTris = uint32_t(mesh.triangles.size());
         MeshWalk walk;
@@ -452,7 +457,9 @@ public:
         std::vector<uint32_t> stamp(n, 0);
         int rounds = 0;
         struct Change { size_t idx; int32_t tri; double d2; };
+        checkInterrupt();
         while (!changedList.empty() && rounds < 256) {
+            checkInterrupt();
             ++rounds;
             tbb::parallel_sort(changedList.begin(), changedList.end());
             // candidates: free neighbours of the changed voxels (each once)
@@ -579,7 +586,7 @@ void propagateClosestVectors(openvdb::FloatTree& tree, const openvdb::FloatTree&
     vcvdt.run(interrupter);
     stats.secondsPasses = seconds(t1);
     const auto t2 = Clock::now();
-    if (shell.points && shell.triangles && shell.mesh) vcvdt.refine(*shell.mesh, transform);
+    if (shell.points && shell.triangles && shell.mesh) vcvdt.refine(*shell.mesh, transform, interrupter);
     vcvdt.writeBack(voxelSize, unreached);
     stats.secondsFinish = seconds(t2);
     if (statsOut) *statsOut = stats;

@@ -125,7 +125,6 @@ void cookDtReport(OperatorArgs& args)
     er.method = "True Euclidean (sub-voxel surface, BVH)";
     er.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     printRow(os, inVoxels(er));
-    double shellSeconds = 0;
     for (bool sub : {false, true}) {
         for (VolumeDistanceMethod m : {VolumeDistanceMethod::CityBlock, VolumeDistanceMethod::EVDT,
                                        VolumeDistanceMethod::EVDTFullGrid, VolumeDistanceMethod::VCVDT4,
@@ -140,9 +139,8 @@ void cookDtReport(OperatorArgs& args)
             r.seconds = st.secondsTransform;
             std::string extra;
             if (sub) {
-                shellSeconds = st.secondsClassify;
                 char buf[64];
-                std::snprintf(buf, sizeof(buf), " + %.3f shell", shellSeconds);
+                std::snprintf(buf, sizeof(buf), " + %.3f shell", st.secondsClassify);
                 extra = buf;
             }
             printRow(os, inVoxels(r), extra);
