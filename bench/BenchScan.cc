@@ -2,11 +2,13 @@
 // side by side with the exact Chang path (levelforge::meshToLevelSet) and
 // openvdb::tools::meshToLevelSet at equal band, all measured against the exact reference.
 //
-//   levelforge_bench_scan [--res 128,256] [--band 3] [--stride 7] [--no-openvdb] mesh.obj ...
+//   levelforge_bench_scan [--res 128,256] [--band 3] [--stride 7] [--no-openvdb] [--conservative] mesh.obj ...
 //   levelforge_bench_scan --png shells.png [--res 64] [--band 4]     (Figure 28-style picture)
 //
-// Methods: chang, scan with each shell (centre sampling), scan pseudonormal / offset with
-// conservative (cell-overlap) rasterization, openvdb. Table: one markdown row per (mesh,
+// Methods: chang; scan with the covering shells (ShellCoverage::Complete: the eps-prism that
+// pseudonormal/thin/offset complete to, and obb); scan with the paper's hulls (ShellCoverage::
+// Paper: pseudonormal, thin, offset), with --conservative also pseudonormal / offset with
+// conservative (cell-overlap) rasterization; openvdb. Table: one markdown row per (mesh,
 // resolution, method): seconds (best of --repeat, default 1),
 // tetrahedra per face, overlap factor (voxels rasterized per active voxel), active voxels,
 // missing voxels (inactive face-neighbours of the result whose exact distance lies inside the
@@ -15,8 +17,8 @@
 // --png: a 2 x 2 panel of the four shells on a 16-sided cylinder (the paper's Figure 28 uses a
 // cylinder): the plane y = 0 through the axis; red = negative, blue = positive (brightness falls
 // with |d|), yellow = voxel of the exact band that the shell missed, green = present but wrong
-// (> 1e-4 voxel from the exact distance), dark grey = outside the band. Written with a minimal
-// PNG written with libpng.
+// (> 1e-4 voxel from the exact distance), dark grey = outside the band; the paper's hulls
+// (ShellCoverage::Paper). Written with libpng.
 #include <levelforge/ExactReference.h>
 #include <levelforge/MeshIO.h>
 #include <levelforge/MeshToLevelSet.h>
@@ -88,6 +90,7 @@ int renderShells(const std::string& path, int res, float band)
         o.voxelSize = h;
         o.exteriorWidth = o.interiorWidth = band;
         o.shell = shells[s];
+        o.coverage = ShellCoverage::Paper; // the paper's hulls, as its Figure 28 shows them
         TetScanStats st;
         const auto g = meshToLevelSetScan(mesh, o, &st);
         auto acc = g->getConstAccessor();
@@ -143,7 +146,7 @@ int main(int argc, char** argv)
     double band = 3.0;
     uint64_t stride = 7;
     int repeat = 1;
-    bool withOpenVdb = true;
+    bool withOpenVdb = true, withConservative = false;
     std::string png;
     std::vector<std::string> meshes;
     for (int i = 1; i < argc; ++i) {
@@ -153,13 +156,14 @@ int main(int argc, char** argv)
         else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) repeat = std::max(1, std::stoi(argv[++i]));
         else if (!std::strcmp(argv[i], "--png") && i + 1 < argc) png = argv[++i];
         else if (!std::strcmp(argv[i], "--no-openvdb")) withOpenVdb = false;
+        else if (!std::strcmp(argv[i], "--conservative")) withConservative = true;
         else meshes.push_back(argv[i]);
     }
     openvdb::initialize();
     if (!png.empty()) return renderShells(png, int(resolutions.front() > 128 ? 64 : resolutions.front()), float(band));
     if (meshes.empty()) {
         std::fprintf(stderr, "usage: levelforge_bench_scan [--res 128,256] [--band 3] [--stride 7] [--repeat 1] "
-                             "[--no-openvdb] mesh...\n       levelforge_bench_scan --png out.png [--res 64] [--band 4]\n");
+                             "[--no-openvdb] [--conservative] mesh...\n       levelforge_bench_scan --png out.png [--res 64] [--band 4]\n");
         return 2;
     }
     std::printf("| mesh | triangles | res | method | seconds | tets/face | overlap | active voxels | missing | "
@@ -190,12 +194,21 @@ int main(int argc, char** argv)
                 rows.push_back(r);
             };
             timed("chang (exact)", [&](Row&) { return meshToLevelSet(mesh, mo); });
-            const std::pair<ShellMethod, bool> scans[] = {
-                {ShellMethod::PseudoNormal, false}, {ShellMethod::Thin, false}, {ShellMethod::Offset, false},
-                {ShellMethod::Obb, false}, {ShellMethod::PseudoNormal, true}, {ShellMethod::Offset, true}};
-            for (const auto& [m, conservative] : scans) {
-                timed(std::string("scan ") + toString(m) + (conservative ? " +conservative" : ""), [&, m = m, conservative = conservative](Row& r) {
+            struct Scan { ShellMethod shell; ShellCoverage coverage; bool conservative; const char* label; };
+            std::vector<Scan> scans = {
+                {ShellMethod::PseudoNormal, ShellCoverage::Complete, false, "scan eps-prism (complete)"},
+                {ShellMethod::Obb, ShellCoverage::Complete, false, "scan obb"},
+                {ShellMethod::PseudoNormal, ShellCoverage::Paper, false, "scan pseudonormal (paper)"},
+                {ShellMethod::Thin, ShellCoverage::Paper, false, "scan thin (paper)"},
+                {ShellMethod::Offset, ShellCoverage::Paper, false, "scan offset (paper)"}};
+            if (withConservative) {
+                scans.push_back({ShellMethod::PseudoNormal, ShellCoverage::Paper, true, "scan pseudonormal (paper) +conservative"});
+                scans.push_back({ShellMethod::Offset, ShellCoverage::Paper, true, "scan offset (paper) +conservative"});
+            }
+            for (const Scan& sc : scans) {
+                timed(sc.label, [&, m = sc.shell, conservative = sc.conservative, coverage = sc.coverage](Row& r) {
                     TetScanOptions so;
+                    so.coverage = coverage;
                     so.conservative = conservative;
                     so.voxelCount = int(res);
                     so.exteriorWidth = so.interiorWidth = float(band);

@@ -14,11 +14,21 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <sstream>
 
 namespace levelforge {
 
 namespace scan_internal {
+
+struct Point2
+{
+    double x, y;
+};
+/// Slice points of one face's shell on one plane: up to kMaxMergedTets tetrahedra x 16 footprint
+/// vertices (a hull of 12 points has at most 20 faces, so every shell here fits).
+constexpr int kMaxMergedTets = 24;
+constexpr int kMaxSlicePoints = kMaxMergedTets * CrossSection::kMaxVertices;
 
 using Clock = std::chrono::steady_clock;
 inline double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
@@ -96,11 +106,44 @@ bool conservativeFootprint(const Tetrahedron& tet, int z, CrossSection& cs)
 }
 
 
-struct SortedTet
+/// The shell of one face: tets[first, first + count) of the face-ordered tetrahedron list.
+struct SortedShell
 {
-    Tetrahedron tet;
+    uint32_t triangle, first, count;
     double zmin, zmax;
 };
+
+/// Convex hull (counter-clockwise, collinear points dropped) of n points into cs. False if it has
+/// more than CrossSection::kMaxVertices vertices. A hull that degenerates to a segment or a point
+/// keeps its 1–2 vertices (crossSectionSpan handles them).
+bool convexPolygon(Point2* pts, int n, CrossSection& cs)
+{
+    std::sort(pts, pts + n, [](const Point2& a, const Point2& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+    n = int(std::unique(pts, pts + n, [](const Point2& a, const Point2& b) { return a.x == b.x && a.y == b.y; }) - pts);
+    if (n <= 2) {
+        cs.count = uint32_t(n);
+        for (int i = 0; i < n; ++i) { cs.x[i] = pts[i].x; cs.y[i] = pts[i].y; }
+        return n > 0;
+    }
+    auto cross = [](const Point2& o, const Point2& a, const Point2& b) {
+        return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+    };
+    Point2 h[2 * kMaxSlicePoints + 2];
+    int k = 0;
+    for (int i = 0; i < n; ++i) {
+        while (k >= 2 && cross(h[k - 2], h[k - 1], pts[i]) <= 0.0) --k;
+        h[k++] = pts[i];
+    }
+    for (int i = n - 2, t = k + 1; i >= 0; --i) {
+        while (k >= t && cross(h[k - 2], h[k - 1], pts[i]) <= 0.0) --k;
+        h[k++] = pts[i];
+    }
+    k = std::max(k - 1, 1);
+    if (k > CrossSection::kMaxVertices) return false;
+    cs.count = uint32_t(k);
+    for (int i = 0; i < k; ++i) { cs.x[i] = h[i].x; cs.y[i] = h[i].y; }
+    return true;
+}
 
 struct Binned
 {
@@ -157,6 +200,23 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
     TetScanStats stats;
     stats.voxelSize = h;
     stats.shell = o.shell;
+    stats.coverage = o.coverage;
+    if (o.maxVoxels > 0) {
+        // Memory guard, the same estimate as meshToLevelSet: band (ext + int) over the area.
+        double area = 0.0; // voxels²
+        for (const Vec3I& t : mMesh.triangles) {
+            const Vec3d& a = mMesh.points[t[0]];
+            area += 0.5 * (mMesh.points[t[1]] - a).cross(mMesh.points[t[2]] - a).length() / (h * h);
+        }
+        const double estimate = area * (extW + intW + 2.0) + double(mMesh.triangles.size());
+        if (estimate > double(o.maxVoxels)) {
+            std::ostringstream os;
+            os << "the band would hold about " << uint64_t(estimate) << " voxels (surface area " << uint64_t(area)
+               << " voxels² × band " << (extW + intW) << " voxels), more than the limit of " << o.maxVoxels
+               << "; use a larger voxel size or narrower band";
+            throw ResourceLimitError(os.str());
+        }
+    }
     auto* interrupter = o.interrupter;
     if (interrupter) interrupter->start("mesh to level set (scan conversion)");
 
@@ -170,6 +230,7 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
     TetrahedralShellOptions shellOpt;
     shellOpt.method = o.shell;
     shellOpt.epsilon = eps;
+    shellOpt.coverage = o.coverage;
     TetrahedralShellStats shellStats;
     std::vector<Tetrahedron> tets = buildTetrahedralShell(indexMesh, normals, shellOpt, &shellStats);
     stats.triangles = shellStats.faces;
@@ -180,30 +241,35 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
     stats.secondsShell = secondsSince(t0);
     progress_internal::check(interrupter, 10);
 
-    // ---- 2. sort by min z (Figure 8)
+    // ---- 2. sort by min z (Figure 8), one entry per face: the tetrahedra of a face are
+    // contiguous in `tets` (buildTetrahedralShell orders them by face)
     t0 = Clock::now();
-    std::vector<SortedTet> sorted(tets.size());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, tets.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    std::vector<SortedShell> sorted;
+    for (size_t i = 0; i < tets.size();) {
+        size_t j = i + 1;
+        while (j < tets.size() && tets[j].triangle == tets[i].triangle) ++j;
+        sorted.push_back({tets[i].triangle, uint32_t(i), uint32_t(j - i), 0.0, 0.0});
+        i = j;
+    }
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, sorted.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
-            const Tetrahedron& t = tets[i];
-            double lo = t.p[0][2], hi = lo;
-            for (int k = 1; k < 4; ++k) { lo = std::min(lo, t.p[k][2]); hi = std::max(hi, t.p[k][2]); }
-            sorted[i] = {t, lo, hi};
+            SortedShell& sh = sorted[i];
+            double lo = tets[sh.first].p[0][2], hi = lo;
+            for (uint32_t t = sh.first; t < sh.first + sh.count; ++t)
+                for (int k = 0; k < 4; ++k) { lo = std::min(lo, tets[t].p[k][2]); hi = std::max(hi, tets[t].p[k][2]); }
+            sh.zmin = lo;
+            sh.zmax = hi;
         }
     });
-    tets.clear();
-    tets.shrink_to_fit();
-    tbb::parallel_sort(sorted.begin(), sorted.end(), [](const SortedTet& a, const SortedTet& b) {
-        if (a.zmin != b.zmin) return a.zmin < b.zmin;
-        if (a.tet.triangle != b.tet.triangle) return a.tet.triangle < b.tet.triangle;
-        for (int k = 0; k < 4; ++k)
-            for (int c = 0; c < 3; ++c)
-                if (a.tet.p[k][c] != b.tet.p[k][c]) return a.tet.p[k][c] < b.tet.p[k][c];
-        return false;
+    tbb::parallel_sort(sorted.begin(), sorted.end(), [](const SortedShell& a, const SortedShell& b) {
+        return a.zmin < b.zmin || (a.zmin == b.zmin && a.triangle < b.triangle);
     });
     stats.secondsSort = secondsSince(t0);
 
-    // ---- 3. sweep over z-slabs (Figure 9), bin polygons into dense slabs, fill, scatter
+    // ---- 3. sweep over z-slabs (Figure 9), bin polygons into dense slabs, fill, scatter.
+    // Each tetrahedron is cut by each plane (cases A, B, C); the cuts of one face's tetrahedra
+    // are merged into one convex polygon — the slice of the face's shell, which is convex (a hull
+    // from its centre, a box or a prism), so the merge is exact — and rasterized once.
     constexpr double tol = 1e-7; // voxels
     const int D = o.slabDepth, W = o.slabWidth;
     CpuSlabBackend cpu;
@@ -213,7 +279,7 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
     if (!sorted.empty()) {
         const double reach = o.conservative ? 0.5 : tol; // how far (z) a tetrahedron reaches a plane
         double zlo = sorted.front().zmin, zhi = sorted.front().zmax;
-        for (const SortedTet& s : sorted) zhi = std::max(zhi, s.zmax);
+        for (const SortedShell& sh : sorted) zhi = std::max(zhi, sh.zmax);
         const int kLo = int(std::ceil(zlo - reach)), kHi = int(std::floor(zhi + reach));
         const int zStart = floorDiv(kLo, D) * D;
         std::vector<uint32_t> active;
@@ -229,36 +295,58 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
             if (active.empty()) continue;
             tbb::enumerable_thread_specific<std::vector<Binned>> tls;
             tbb::enumerable_thread_specific<uint64_t> sections(0);
-            tbb::parallel_for(tbb::blocked_range<size_t>(0, active.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, active.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+                progress_internal::check(interrupter);
                 std::vector<Binned>& bins = tls.local();
                 uint64_t& nsec = sections.local();
+                Point2 pts[kMaxSlicePoints];
+                auto bin = [&](CrossSection& cs, int k, uint32_t triangle) {
+                    const int n = int(cs.count);
+                    cs.z = k;
+                    cs.triangle = triangle;
+                    double xmin = cs.x[0], xmax = xmin, ymin = cs.y[0], ymax = ymin;
+                    for (int i = 1; i < n; ++i) {
+                        xmin = std::min(xmin, cs.x[i]); xmax = std::max(xmax, cs.x[i]);
+                        ymin = std::min(ymin, cs.y[i]); ymax = std::max(ymax, cs.y[i]);
+                    }
+                    const int ix0 = int(std::ceil(xmin - tol)), ix1 = int(std::floor(xmax + tol));
+                    const int iy0 = int(std::ceil(ymin - tol)), iy1 = int(std::floor(ymax + tol));
+                    if (ix0 > ix1 || iy0 > iy1) return;
+                    ++nsec;
+                    for (int tx = floorDiv(ix0, W); tx <= floorDiv(ix1, W); ++tx)
+                        for (int ty = floorDiv(iy0, W); ty <= floorDiv(iy1, W); ++ty) {
+                            const uint64_t key = (uint64_t(uint32_t(tx + (1 << 30))) << 32) | uint32_t(ty + (1 << 30));
+                            bins.push_back({key, cs});
+                        }
+                };
+                // One tetrahedron's polygon on plane k (plain slice or conservative footprint).
+                auto cut = [&](const Tetrahedron& tet, int k, CrossSection& cs) {
+                    if (o.conservative) return conservativeFootprint(tet, k, cs);
+                    const int n = sliceTetrahedron(tet, double(k), cs.x.data(), cs.y.data());
+                    cs.count = uint32_t(n);
+                    return n > 0;
+                };
                 for (size_t a = r.begin(); a != r.end(); ++a) {
-                    const SortedTet& st = sorted[active[a]];
-                    const int ka = std::max(z0, int(std::ceil(st.zmin - reach)));
-                    const int kb = std::min(z1, int(std::floor(st.zmax + reach)));
+                    const SortedShell& sh = sorted[active[a]];
+                    const int ka = std::max(z0, int(std::ceil(sh.zmin - reach)));
+                    const int kb = std::min(z1, int(std::floor(sh.zmax + reach)));
                     for (int k = ka; k <= kb; ++k) {
                         CrossSection cs;
-                        int n = 0;
-                        if (o.conservative) n = conservativeFootprint(st.tet, k, cs) ? int(cs.count) : 0;
-                        else n = sliceTetrahedron(st.tet, double(k), cs.x.data(), cs.y.data());
-                        if (n == 0) continue;
-                        cs.count = uint32_t(n);
-                        cs.z = k;
-                        cs.triangle = st.tet.triangle;
-                        double xmin = cs.x[0], xmax = xmin, ymin = cs.y[0], ymax = ymin;
-                        for (int i = 1; i < n; ++i) {
-                            xmin = std::min(xmin, cs.x[i]); xmax = std::max(xmax, cs.x[i]);
-                            ymin = std::min(ymin, cs.y[i]); ymax = std::max(ymax, cs.y[i]);
+                        int np = 0, pieces = 0;
+                        for (uint32_t t = sh.first; t < sh.first + sh.count; ++t) {
+                            CrossSection piece;
+                            if (!cut(tets[t], k, piece)) continue;
+                            if (pieces++ == 0) cs = piece;
+                            for (uint32_t i = 0; i < piece.count && np < kMaxSlicePoints; ++i)
+                                pts[np++] = {piece.x[i], piece.y[i]};
                         }
-                        const int ix0 = int(std::ceil(xmin - tol)), ix1 = int(std::floor(xmax + tol));
-                        const int iy0 = int(std::ceil(ymin - tol)), iy1 = int(std::floor(ymax + tol));
-                        if (ix0 > ix1 || iy0 > iy1) continue;
-                        ++nsec;
-                        for (int tx = floorDiv(ix0, W); tx <= floorDiv(ix1, W); ++tx)
-                            for (int ty = floorDiv(iy0, W); ty <= floorDiv(iy1, W); ++ty) {
-                                const uint64_t key = (uint64_t(uint32_t(tx + (1 << 30))) << 32) | uint32_t(ty + (1 << 30));
-                                bins.push_back({key, cs});
-                            }
+                        if (pieces == 0) continue;
+                        if (pieces == 1 || (sh.count <= uint32_t(kMaxMergedTets) && convexPolygon(pts, np, cs))) {
+                            bin(cs, k, sh.triangle);
+                            continue;
+                        }
+                        for (uint32_t t = sh.first; t < sh.first + sh.count; ++t) // unmergeable: one by one
+                            if (cut(tets[t], k, cs)) bin(cs, k, sh.triangle);
                     }
                 }
             });
@@ -276,12 +364,13 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
             sweepSec += secondsSince(ts);
 
             ts = Clock::now();
-            std::vector<std::vector<FloatLeaf*>> leaves(ng);
+            std::vector<std::vector<std::unique_ptr<FloatLeaf>>> leaves(ng); // owned until added
             std::vector<uint64_t> raster(ng, 0), activeCount(ng, 0);
             tbb::parallel_for(tbb::blocked_range<size_t>(0, ng, 1), [&](const tbb::blocked_range<size_t>& r) {
                 DenseSlab slab;
                 std::vector<CrossSection> cs;
                 for (size_t g = r.begin(); g != r.end(); ++g) {
+                    progress_internal::check(interrupter);
                     const uint64_t key = items[groups[g]].key;
                     const int tx = int(int64_t(key >> 32) - (1 << 30)), ty = int(int64_t(key & 0xffffffffu) - (1 << 30));
                     const Coord lo(tx * W, ty * W, z0), hi(tx * W + W - 1, ty * W + W - 1, z1);
@@ -294,7 +383,7 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
                     for (int lx = lo.x(); lx <= hi.x(); lx += 8)
                         for (int ly = lo.y(); ly <= hi.y(); ly += 8)
                             for (int lz = lo.z(); lz <= hi.z(); lz += 8) {
-                                FloatLeaf* leaf = nullptr;
+                                std::unique_ptr<FloatLeaf> leaf;
                                 for (int dx = 0; dx < 8; ++dx)
                                     for (int dy = 0; dy < 8; ++dy)
                                         for (int dz = 0; dz < 8; ++dz) {
@@ -303,21 +392,19 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
                                             if (slab.tri[idx] == DenseSlab::kNone) continue;
                                             const double v = slab.dist[idx] / h;
                                             if (!(v < extW && v > -intW)) continue;
-                                            if (!leaf) leaf = new FloatLeaf(Coord(lx, ly, lz), bg, false);
+                                            if (!leaf) leaf = std::make_unique<FloatLeaf>(Coord(lx, ly, lz), bg, false);
                                             leaf->setValueOn(c, float(slab.dist[idx]));
                                             ++activeCount[g];
                                         }
-                                if (leaf) {
-                                    // inactive voxels of the leaf carry +/- background (sign of nearest active)
-                                    leaves[g].push_back(leaf);
-                                }
+                                // inactive voxels of the leaf get +/- background from the flood fill
+                                if (leaf) leaves[g].push_back(std::move(leaf));
                             }
                 }
             });
             for (size_t g = 0; g < ng; ++g) {
                 stats.voxelsRasterized += raster[g];
                 stats.activeVoxels += activeCount[g];
-                for (FloatLeaf* l : leaves[g]) tree->addLeaf(l);
+                for (auto& l : leaves[g]) tree->addLeaf(l.release());
             }
             fillSec += secondsSince(ts);
             progress_internal::check(interrupter, 10 + int(85.0 * double(z0 - zStart + D) / double(kHi - zStart + D)));

@@ -30,6 +30,18 @@ ShellMethod shellMethodFromString(const std::string& name)
     throw InvalidArgumentError("unknown shell method '" + name + "' (pseudonormal, thin, offset, obb)");
 }
 
+const char* toString(ShellCoverage coverage)
+{
+    return coverage == ShellCoverage::Paper ? "paper" : "complete";
+}
+
+ShellCoverage shellCoverageFromString(const std::string& name)
+{
+    for (ShellCoverage c : {ShellCoverage::Complete, ShellCoverage::Paper})
+        if (name == toString(c)) return c;
+    throw InvalidArgumentError("unknown shell coverage '" + name + "' (complete, paper)");
+}
+
 namespace shell_internal {
 
 double volume(const Tetrahedron& t)
@@ -193,6 +205,51 @@ std::array<Vec3d, 8> obbCorners(const Vec3d& a, const Vec3d& b, const Vec3d& c, 
     return out;
 }
 
+std::array<Vec3d, 12> epsilonPrism(const Vec3d& a, const Vec3d& b, const Vec3d& c, double eps)
+{
+    const Vec3d v[3] = {a, b, c};
+    Vec3d n = (b - a).cross(c - a);
+    n.normalize();
+    Vec3d out[3]; // outward unit normal of edge i = (v[i], v[i+1]) in the face plane
+    for (int i = 0; i < 3; ++i) {
+        out[i] = (v[(i + 1) % 3] - v[i]).cross(n);
+        out[i].normalize();
+    }
+    std::array<Vec3d, 12> c12;
+    for (int i = 0; i < 3; ++i) {
+        const int prev = (i + 2) % 3; // edge (v[i-1], v[i])
+        Vec3d w = out[prev] + out[i]; // bisector of the vertex's outward normal cone
+        w.normalize();
+        // On edge prev's offset line, past v[i] along the edge; then on edge i's offset line.
+        Vec3d d0 = v[i] - v[prev], d1 = v[i] - v[(i + 1) % 3];
+        d0.normalize();
+        d1.normalize();
+        const double l0 = eps * (1.0 - out[prev].dot(w)) / std::max(d0.dot(w), 1e-12);
+        const double l1 = eps * (1.0 - out[i].dot(w)) / std::max(d1.dot(w), 1e-12);
+        c12[2 * i] = v[i] + out[prev] * eps + d0 * l0;
+        c12[2 * i + 1] = v[i] + out[i] * eps + d1 * l1;
+    }
+    for (int k = 0; k < 6; ++k) {
+        c12[k + 6] = c12[k] + n * eps;
+        c12[k] -= n * eps;
+    }
+    return c12;
+}
+
+void prismTetrahedra(const std::array<Vec3d, 12>& c, uint32_t triangle, std::vector<Tetrahedron>& out)
+{
+    // Fan of the hexagon from corner 0; each triangular prism (a, b, d | a', b', d') as the three
+    // tetrahedra (a, b, d, d'), (a, b, b', d'), (a, a', b', d'), whose union is the prism.
+    for (int k = 1; k <= 4; ++k) {
+        const int a = 0, b = k, d = k + 1;
+        const Tetrahedron tets[3] = {{{c[a], c[b], c[d], c[d + 6]}, triangle},
+                                     {{c[a], c[b], c[b + 6], c[d + 6]}, triangle},
+                                     {{c[a], c[a + 6], c[b + 6], c[d + 6]}, triangle}};
+        for (const Tetrahedron& t : tets)
+            if (volume(t) > 0.0) out.push_back(t);
+    }
+}
+
 void obbTetrahedra(const std::array<Vec3d, 8>& c, uint32_t triangle, std::vector<Tetrahedron>& out)
 {
     // Five-tetrahedron decomposition of a box: the central tetrahedron (1, 2, 4, 7) and the four
@@ -227,6 +284,11 @@ std::vector<Tetrahedron> buildTetrahedralShell(const TriangleMesh& mesh, const P
             std::vector<Tetrahedron>& out = perFace[t];
             if (options.method == ShellMethod::Obb) {
                 obbTetrahedra(obbCorners(p[0], p[1], p[2], eps), uint32_t(t), out);
+                continue;
+            }
+            if (options.coverage == ShellCoverage::Complete) {
+                // hull(paper points + prism) = prism: every paper point lies within eps of the face.
+                prismTetrahedra(epsilonPrism(p[0], p[1], p[2], eps), uint32_t(t), out);
                 continue;
             }
             std::array<Vec3d, 3> n;
@@ -269,6 +331,8 @@ std::vector<Tetrahedron> buildTetrahedralShell(const TriangleMesh& mesh, const P
     }
     stats.tetrahedra = all.size();
     for (uint64_t v : limited) stats.limitedExtrusions += v;
+    if (options.method != ShellMethod::Obb && options.coverage == ShellCoverage::Complete)
+        stats.completedFaces = stats.faces;
     if (statsOut) *statsOut = stats;
     return all;
 }

@@ -17,6 +17,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <functional>
 
 using namespace levelforge;
@@ -114,11 +116,13 @@ Coverage coverage(const openvdb::FloatGrid& g, const ExactReference& ref, const 
     return c;
 }
 
-TetScanOptions scanOptions(double voxelSize, ShellMethod shell, float band = 3.0f)
+TetScanOptions scanOptions(double voxelSize, ShellMethod shell, float band = 3.0f,
+                           ShellCoverage coverage = ShellCoverage::Complete)
 {
     TetScanOptions o;
     o.voxelSize = voxelSize;
     o.shell = shell;
+    o.coverage = coverage;
     o.exteriorWidth = band;
     o.interiorWidth = band;
     return o;
@@ -185,9 +189,37 @@ TEST(TetScanConversion, ObbCoversTheBandOfRandomSoups)
     }
 }
 
+TEST(TetScanConversion, EveryShellCoversTheBandOfRandomMeshes)
+{
+    // ShellCoverage::Complete (the default): every shell contains the eps-neighbourhood of its
+    // face, so every voxel of the band is present with its exact value, for every shell, on
+    // random soups (every face alone: edges and vertices fully exposed), a closed mesh, a mesh
+    // with sharp features and an open one, at two band widths.
+    std::vector<TriangleMesh> meshes;
+    for (uint64_t seed : {1ull, 2ull, 3ull, 4ull}) meshes.push_back(makeRandomTriangles(50, seed, BBoxd(Vec3d(-1.0), Vec3d(1.0)), 0.8));
+    meshes.push_back(makeTorusKnot(2, 3, 1.0, 0.25, 64, 10));
+    meshes.push_back(makeBox(Vec3d(-0.713), Vec3d(0.6017, 0.8033, 0.5051), 2));
+    for (const TriangleMesh& mesh : meshes) {
+        ExactReference ref(mesh);
+        for (ShellMethod m : kAllShells)
+            for (float band : {1.5f, 3.0f}) {
+                TetScanStats stats;
+                const auto grid = meshToLevelSetScan(mesh, scanOptions(0.07, m, band), &stats);
+                const Coverage c = coverage(*grid, ref, mesh, band, band);
+                EXPECT_GT(c.bandVoxels, 500u);
+                EXPECT_EQ(c.missing, 0u) << mesh.source << " " << toString(m) << " band " << band;
+                EXPECT_EQ(c.wrong, 0u) << mesh.source << " " << toString(m) << " band " << band;
+                // (voxels within 1e-6 of the band edge are present but not counted in the band)
+                EXPECT_GE(c.exact, c.bandVoxels) << mesh.source << " " << toString(m);
+                EXPECT_EQ(stats.activeVoxels, grid->activeVoxelCount());
+            }
+    }
+}
+
 TEST(TetScanConversion, PseudonormalFamilyShellsCoverageIsMeasured)
 {
-    // These shells do not contain the whole eps-neighbourhood of a face (TetrahedralShell.h).
+    // The paper's hulls (ShellCoverage::Paper) do not contain the whole eps-neighbourhood of a
+    // face (TetrahedralShell.h).
     // Measured here: they never underestimate, they are exact on almost all of the band, and what
     // they miss or overestimate is reported (docs/scan-conversion.md).
     const TriangleMesh sphere = makeIcosphere(Vec3d(0.0), 1.0, 3);
@@ -197,7 +229,7 @@ TEST(TetScanConversion, PseudonormalFamilyShellsCoverageIsMeasured)
         ExactReference ref(*mesh);
         for (ShellMethod m : kAllShells) {
             TetScanStats stats;
-            const auto grid = meshToLevelSetScan(*mesh, scanOptions(0.05, m), &stats);
+            const auto grid = meshToLevelSetScan(*mesh, scanOptions(0.05, m, 3.0f, ShellCoverage::Paper), &stats);
             const Coverage c = coverage(*grid, ref, *mesh, 3.0, 3.0);
             std::printf("[ coverage ] %-28s %-12s band %7llu exact %7llu missing %6llu wrong %6llu  tets/face %.2f overlap %.2f\n",
                         mesh->source.c_str(), toString(m), (unsigned long long)c.bandVoxels,
@@ -221,7 +253,7 @@ TEST(TetScanConversion, ConservativeRasterizationClosesSubVoxelGaps)
     const TriangleMesh knot = makeTorusKnot(2, 3, 1.0, 0.25, 64, 10);
     ExactReference ref(knot);
     for (ShellMethod m : kAllShells) {
-        TetScanOptions o = scanOptions(0.07, m);
+        TetScanOptions o = scanOptions(0.07, m, 3.0f, ShellCoverage::Paper);
         TetScanStats plainStats, consStats;
         const auto plain = meshToLevelSetScan(knot, o, &plainStats);
         o.conservative = true;
@@ -410,6 +442,38 @@ TEST(TetScanConversion, RejectsBadOptions)
     o = scanOptions(0.0, ShellMethod::Obb);
     EXPECT_THROW(meshToLevelSetScan(mesh, o), InvalidArgumentError);
     EXPECT_THROW(meshToLevelSetScan(TriangleMesh{}, scanOptions(0.1, ShellMethod::Obb)), InvalidMeshError);
+    // Memory guard: a band too large for maxVoxels is refused before anything is allocated.
+    o = scanOptions(0.001, ShellMethod::Obb); // 2000 voxels across the box: ~2.4e7 surface voxels²
+    o.maxVoxels = 1'000'000;
+    try {
+        meshToLevelSetScan(mesh, o);
+        ADD_FAILURE() << "expected ResourceLimitError";
+    } catch (const ResourceLimitError& e) {
+        EXPECT_NE(std::string(e.what()).find("more than the limit of 1000000"), std::string::npos) << e.what();
+    }
+}
+
+TEST(TetScanConversion, InterruptionStopsInsideTheSweepAndLeavesNothing)
+{
+    struct StopAfter : public openvdb::util::NullInterrupter
+    {
+        std::atomic<int> calls{0};
+        int limit;
+        explicit StopAfter(int n) : limit(n) {}
+        bool wasInterrupted(int = -1) override { return ++calls > limit; }
+    };
+    const TriangleMesh mesh = makeTorusKnot(2, 3, 1.0, 0.25, 64, 10);
+    TetScanOptions o = scanOptions(0.02, ShellMethod::PseudoNormal);
+    StopAfter probe(1 << 30);
+    o.interrupter = &probe;
+    meshToLevelSetScan(mesh, o);
+    const int total = probe.calls.load();
+    // Polled inside the parallel loops: many more polls than z-slabs.
+    const int slabs = int(std::ceil((mesh.bounds().extents()[2] / 0.02 + 8) / 8.0));
+    EXPECT_GT(total, 4 * slabs) << "polls " << total;
+    StopAfter stop(total / 2);
+    o.interrupter = &stop;
+    EXPECT_THROW(meshToLevelSetScan(mesh, o), InterruptedError);
 }
 
 #ifdef LEVELFORGE_CLI_PATH
@@ -420,7 +484,7 @@ TEST(TetScanConversion, CliMethodScanWritesTheExactBand)
     const auto dir = levelforge_test::scratchDir("tet_scan_cli");
     const std::string out = (dir / "sphere.vdb").string();
     const std::string cmd = std::string("\"") + LEVELFORGE_CLI_PATH + "\" mesh-to-sdf builtin:sphere \"" + out +
-                            "\" --voxel-count 40 --method scan --shell offset --quiet --report > \"" +
+                            "\" --voxel-count 40 --method scan --shell offset --shell-coverage complete --quiet --report > \"" +
                             (dir / "log.txt").string() + "\" 2>&1";
     ASSERT_EQ(std::system(cmd.c_str()), 0);
     const auto grids = readGrids(out);
@@ -429,6 +493,9 @@ TEST(TetScanConversion, CliMethodScanWritesTheExactBand)
     ASSERT_TRUE(grid);
     EXPECT_EQ(grid->metaValue<std::string>("levelforge:method"), "erleben-dohlmann-t4-scan");
     EXPECT_GT(grid->activeVoxelCount(), 1000u);
+    std::ifstream log(dir / "log.txt");
+    const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("shell offset, coverage complete (eps-prism)"), std::string::npos) << text;
     const std::string bad = std::string("\"") + LEVELFORGE_CLI_PATH + "\" mesh-to-sdf builtin:sphere \"" + out +
                             "\" --method scan --shell prism > /dev/null 2>&1";
     EXPECT_NE(std::system(bad.c_str()), 0);

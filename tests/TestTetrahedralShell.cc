@@ -159,6 +159,88 @@ TEST(TetrahedralShell, ObbContainsTheEpsNeighbourhood)
     }
 }
 
+TEST(TetrahedralShell, EpsilonPrismContainsTheEpsNeighbourhoodAndThePaperHulls)
+{
+    // The completion of ShellCoverage::Complete: the prism contains N_eps(T) (random points within
+    // eps of random triangles, slivers included) and every point of the paper's hulls, and it is
+    // not much larger than N_eps(T): no prism corner is farther than eps / cos(45°) + eps from T.
+    std::mt19937_64 rng(12);
+    int tested = 0;
+    for (int trial = 0; trial < 200; ++trial) {
+        Vec3d v[3];
+        for (auto& x : v) x = Vec3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
+        if (trial % 4 == 0) v[2] = v[0] + (v[1] - v[0]) * uniform(rng, 0.05, 0.95) + Vec3d(1e-3, -2e-3, 1e-3); // sliver
+        if ((v[1] - v[0]).cross(v[2] - v[0]).length() < 1e-9) continue;
+        const double eps = uniform(rng, 0.01, 0.5);
+        const auto corners = shell_internal::epsilonPrism(v[0], v[1], v[2], eps);
+        std::vector<Tetrahedron> tets;
+        shell_internal::prismTetrahedra(corners, 7, tets);
+        ASSERT_GE(tets.size(), 6u);
+        ASSERT_LE(tets.size(), 12u);
+        for (const auto& t : tets) EXPECT_EQ(t.triangle, 7u);
+        for (const Vec3d& c : corners) {
+            const double d = (closestPointOnTriangle(c, v[0], v[1], v[2]).point - c).length();
+            EXPECT_LE(d, eps * (std::sqrt(2.0) + 1.0) + 1e-12);
+            EXPECT_GE(d, eps * (1.0 - 1e-9));
+        }
+        Vec3d n = (v[1] - v[0]).cross(v[2] - v[0]);
+        n.normalize();
+        for (int s = 0; s < 300; ++s) {
+            double a = uniform(rng, 0, 1), b = uniform(rng, 0, 1);
+            if (a + b > 1) { a = 1 - a; b = 1 - b; }
+            const Vec3d base = v[0] + (v[1] - v[0]) * a + (v[2] - v[0]) * b;
+            Vec3d dir(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
+            if (dir.length() < 1e-6) continue;
+            dir.normalize();
+            // Half the samples on the boundary of N_eps(T) (the hardest case), half inside.
+            const double r = (s % 2) ? eps * (1.0 - 1e-12) : eps * std::cbrt(uniform(rng, 0, 1));
+            EXPECT_TRUE(insideAny(tets, base + dir * r, 1e-9)) << "trial " << trial;
+            ++tested;
+        }
+        // Paper hull points: vertex +- eps * (any unit normal) and +- eps * face normal.
+        for (int k = 0; k < 3; ++k) {
+            Vec3d dir(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
+            dir.normalize();
+            EXPECT_TRUE(insideAny(tets, v[k] + dir * eps, 1e-9));
+            EXPECT_TRUE(insideAny(tets, v[k] - n * eps, 1e-9));
+        }
+    }
+    EXPECT_GT(tested, 10000);
+}
+
+TEST(TetrahedralShell, CompleteCoverageUsesThePrismPaperCoverageThePaperHull)
+{
+    const TriangleMesh mesh = makeIcosphere(Vec3d(0.0), 1.0, 1);
+    const PseudoNormals normals(mesh);
+    for (ShellMethod m : {ShellMethod::PseudoNormal, ShellMethod::Thin, ShellMethod::Offset}) {
+        TetrahedralShellOptions opt;
+        opt.method = m;
+        opt.epsilon = 0.2;
+        TetrahedralShellStats complete, paper;
+        const auto a = buildTetrahedralShell(mesh, normals, opt, &complete);
+        opt.coverage = ShellCoverage::Paper;
+        const auto b = buildTetrahedralShell(mesh, normals, opt, &paper);
+        EXPECT_EQ(complete.completedFaces, mesh.triangleCount()) << toString(m);
+        EXPECT_EQ(paper.completedFaces, 0u) << toString(m);
+        // Every corner of every paper tetrahedron lies inside the completed shell of its face.
+        for (const auto& t : b)
+            for (const Vec3d& p : t.p) {
+                std::vector<Tetrahedron> own;
+                for (const auto& u : a)
+                    if (u.triangle == t.triangle) own.push_back(u);
+                EXPECT_TRUE(insideAny(own, p, 1e-9)) << toString(m) << " face " << t.triangle;
+            }
+    }
+    TetrahedralShellOptions obb;
+    obb.epsilon = 0.2;
+    TetrahedralShellStats s;
+    buildTetrahedralShell(mesh, normals, obb, &s);
+    EXPECT_EQ(s.completedFaces, 0u); // the box covers already
+    EXPECT_EQ(shellCoverageFromString("paper"), ShellCoverage::Paper);
+    EXPECT_STREQ(toString(ShellCoverage::Complete), "complete");
+    EXPECT_THROW(shellCoverageFromString("exact"), InvalidArgumentError);
+}
+
 TEST(TetrahedralShell, EveryMethodTagsFacesAndIsDeterministic)
 {
     const TriangleMesh mesh = makeIcosphere(Vec3d(0.0), 1.0, 2);

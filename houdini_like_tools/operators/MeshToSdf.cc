@@ -72,7 +72,7 @@ void printStats(std::ostream& os, const MeshToLevelSetStats& s)
 }
 
 // ---- --method scan (issue 5: T4 scan conversion, TetScanConversion.h)
-TetScanOptions scanOptionsFrom(const MeshToLevelSetOptions& o, const std::string& shell)
+TetScanOptions scanOptionsFrom(const MeshToLevelSetOptions& o, const OperatorArgs& args)
 {
     TetScanOptions s;
     s.voxelSize = o.voxelSize;
@@ -81,13 +81,17 @@ TetScanOptions scanOptionsFrom(const MeshToLevelSetOptions& o, const std::string
     s.interiorWidth = o.interiorWidth;
     s.gridName = o.gridName;
     s.interrupter = o.interrupter;
-    s.shell = shellMethodFromString(shell);
+    s.shell = shellMethodFromString(args.getString("shell"));
+    s.coverage = shellCoverageFromString(args.getString("shell-coverage"));
+    s.conservative = args.getBool("conservative");
+    s.maxVoxels = o.maxVoxels;
     return s;
 }
 
 void printScanStats(std::ostream& os, const TetScanStats& s)
 {
-    os << "statistics (scan conversion, shell " << toString(s.shell) << "):\n"
+    os << "statistics (scan conversion, shell " << toString(s.shell) << ", coverage " << toString(s.coverage)
+       << (s.shell != ShellMethod::Obb && s.coverage == ShellCoverage::Complete ? " (eps-prism)" : "") << "):\n"
        << "  triangles used:          " << withThousands(s.triangles) << " ("
        << withThousands(s.skippedDegenerate) << " degenerate skipped)\n"
        << "  tetrahedra:              " << withThousands(s.tetrahedra) << " ("
@@ -169,7 +173,7 @@ void cookMeshToSdf(OperatorArgs& args)
     openvdb::Vec3fGrid::Ptr closest; // exact closest points of the band, for --expansion vector
     openvdb::Int32Grid::Ptr closestTriangles;
     if (scan) {
-        grid = meshToLevelSetScan(mesh, scanOptionsFrom(options, args.getString("shell")), &scanStats);
+        grid = meshToLevelSetScan(mesh, scanOptionsFrom(options, args), &scanStats);
     } else if (vector) {
         LevelSetWithClosestPoints r = meshToLevelSetWithClosestPoints(mesh, options, &stats);
         grid = r.levelSet;
@@ -271,10 +275,21 @@ LEVELFORGE_REGISTER_OPERATOR(
                              {"chang", "scan"})
                    .defaultValue("chang"))
         .param(Param::choice("shell", "Shell",
-                             "Tetrahedral shell for --method scan: obb covers the whole band (exact); "
-                             "pseudonormal, thin, offset are tighter and may miss voxels near the band edge",
+                             "Tetrahedral shell for --method scan (Erleben-Dohlmann 3.3-3.5): the "
+                             "oriented box (obb), or the pseudonormal-family hulls (pseudonormal, thin, "
+                             "offset), which --shell-coverage complete turns into the face's eps-prism",
                              {"pseudonormal", "thin", "offset", "obb"})
                    .defaultValue("obb"))
+        .param(Param::choice("shell-coverage", "Shell Coverage",
+                             "complete: every shell contains the band-width neighbourhood of its face, "
+                             "so the band is exact with no missing voxel; paper: the paper's hulls as "
+                             "built (pseudonormal, thin, offset then miss voxels near the band edge)",
+                             {"complete", "paper"})
+                   .defaultValue("complete"))
+        .param(Param::flag("conservative", "Conservative Rasterization",
+                           "--method scan: a voxel is covered when its cell, not only its centre, "
+                           "meets a tetrahedron (more rasterized voxels; closes sub-voxel gaps of "
+                           "paper shells)"))
         .param(Param::string("grid-name", "Grid Name", "Name of the grid in the .vdb file")
                    .defaultValue("surface"))
         .param(Param::flag("quiet", "Quiet", "Print no progress on stderr"))

@@ -7,7 +7,9 @@
 //      built in index space with eps = max(exteriorWidth, interiorWidth) voxels;
 //   2. sweep: tetrahedra sorted by min z; for each z-slab of the grid (slabDepth planes) the
 //      active set comes from a sweep line (add by min z, drop by max z); each active tetrahedron
-//      is cut by each plane of the slab into a convex polygon (cases A, B, C of §3.1);
+//      is cut by each plane of the slab into a convex polygon (cases A, B, C of §3.1), and the
+//      polygons of one face's tetrahedra are merged into their convex hull — exactly the slice
+//      of the face's shell, which is convex — so each (face, plane) is rasterized once;
 //   3. the polygons are binned into dense slabs (slabDepth x slabWidth x slabWidth voxels, leaf
 //      aligned) and a SlabBackend (DenseSlab.h; CpuSlabBackend by default) fills each slab with the
 //      exact distance to the polygon's source triangle at every covered voxel centre, signed by
@@ -18,11 +20,12 @@
 //
 // What is exact: every active voxel holds the exact distance (double, stored as float) to a
 // triangle whose shell covers it, and the min over those triangles. Where the voxel is covered
-// by the shell of its true closest triangle — always for ShellMethod::Obb, which contains the
-// whole eps-neighbourhood of each face — the value and sign equal ExactReference and
-// meshToLevelSet (Chang). With the pseudonormal-family shells (PseudoNormal, Thin, Offset), voxels
-// near |d| = eps outside the shell of their closest triangle may be missing or hold a larger
-// distance — and then the sign — of a neighbour (see TetrahedralShell.h and
+// by the shell of its true closest triangle — always with ShellCoverage::Complete (the default),
+// where every shell contains the whole eps-neighbourhood of its face — the value and sign equal
+// ExactReference and meshToLevelSet (Chang), and no voxel of the band is missing. With
+// ShellCoverage::Paper the pseudonormal-family shells (PseudoNormal, Thin, Offset) are the paper's
+// hulls, and voxels near |d| = eps outside the shell of their closest triangle may be missing or
+// hold a larger distance — and then the sign — of a neighbour (see TetrahedralShell.h and
 // docs/scan-conversion.md). Sign: pseudonormal rule of the closest feature, so with Obb there are
 // no plane-test or construction leaks (§2) on closed, consistently oriented meshes; a fold
 // (flipped triangle) is wrong by construction of its pseudonormals — there is no fix in the paper.
@@ -51,6 +54,11 @@ struct TetScanOptions
     float exteriorWidth = 3.0f;
     float interiorWidth = 3.0f;
     ShellMethod shell = ShellMethod::Obb;
+    /// Complete (default): every shell covers the eps band (exact result); Paper: the paper's hulls.
+    ShellCoverage coverage = ShellCoverage::Complete;
+    /// Refuse meshes whose band would hold more voxels than this (estimate: surface area in
+    /// voxels² × band width, as meshToLevelSet); also bounds the rasterization work. 0 = no limit.
+    uint64_t maxVoxels = 2'000'000'000ull;
     /// Slab size in voxels: z planes per slab and xy edge, multiples of 8 (VDB leaf aligned).
     int slabDepth = 8;
     int slabWidth = 32;
@@ -73,10 +81,11 @@ struct TetScanStats
 {
     double voxelSize = 0.0;
     ShellMethod shell = ShellMethod::Obb;
+    ShellCoverage coverage = ShellCoverage::Complete;
     uint64_t triangles = 0, skippedDegenerate = 0;
     uint64_t tetrahedra = 0;
     uint64_t limitedExtrusions = 0; ///< Thin shell: faces shortened below eps
-    uint64_t crossSections = 0;     ///< (tetrahedron, plane) polygons
+    uint64_t crossSections = 0;     ///< (face, plane) polygons: the merged cuts of a face's tetrahedra
     uint64_t slabItems = 0;         ///< polygons handed to slabs (a polygon may touch several)
     uint64_t slabs = 0;
     uint64_t voxelsRasterized = 0;  ///< (voxel, polygon) evaluations
@@ -102,7 +111,8 @@ private:
 
 /// Converts a triangle mesh to a narrow-band level set by T4 scan conversion.
 /// Throws InvalidArgumentError (bad options), InvalidMeshError (empty mesh, NaN, bad index),
-/// ResourceLimitError (index coordinates out of range), InterruptedError.
+/// ResourceLimitError (index coordinates out of range, band larger than maxVoxels),
+/// InterruptedError (polled per slab, from inside the parallel loops).
 openvdb::FloatGrid::Ptr meshToLevelSetScan(const TriangleMesh& mesh, const TetScanOptions& options = {},
                                            TetScanStats* stats = nullptr);
 

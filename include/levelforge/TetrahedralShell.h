@@ -18,13 +18,30 @@
 //
 // Coverage (what is exact, what is not). Call N_eps(T) the set of points within eps of triangle T.
 //   * Obb contains N_eps(T) completely (T lies in the rectangle R, so a point within eps of T is
-//     within eps of R in each frame coordinate). With Obb, every voxel of the eps band is covered
-//     by the shell of its closest triangle, so the scan-converted band is exact.
-//   * PseudoNormal, Thin and Offset do NOT contain N_eps(T) in general: near vertices and edges
-//     the eps-ball bulges beyond the chords of the hull, and Thin shortens the extrusion below eps
-//     wherever the root system demands it. They cover a large part of the band; voxels they miss
-//     are either absent or hold the distance to another (farther) triangle that covers them.
-//     TestTetScanConversion measures both; docs/scan-conversion.md reports the numbers.
+//     within eps of R in each frame coordinate).
+//   * The paper's PseudoNormal, Thin and Offset hulls do NOT contain N_eps(T) in general: near
+//     vertices and edges the eps-ball bulges beyond the chords of the hull, and Thin shortens the
+//     extrusion below eps wherever the root system demands it. On the other hand every one of
+//     their points is p_i + s * n with |s| <= eps and |n| = 1, i.e. within eps of T, and N_eps(T)
+//     is convex, so each of these hulls lies INSIDE N_eps(T).
+//   * ShellCoverage::Complete (the default) therefore completes them to the eps-prism of the face
+//     (epsilonPrism below): the hexagon bounded by the three edge lines offset by eps in the face
+//     plane and by three bevel lines at distance eps from the vertices, perpendicular to the
+//     bisector of the vertex's two outward edge normals, extruded +-eps along the face normal.
+//     Each of the 6 half-planes (x) the slab contains N_eps(T) (the support of T + disc(eps) in an
+//     edge normal is that edge's offset; in a direction of a vertex's normal cone, the vertex's),
+//     so the prism contains N_eps(T), and it contains the paper hull because N_eps(T) does: the
+//     completion hull(paper points + prism) IS the prism, and the three completed shells
+//     coincide. The prism is the ball's circumscribed cylinder swept along T: for an equilateral
+//     face of edge 1 voxel at eps = 3 voxels it holds 244 voxel volumes (N_eps(T): 158, Obb: 288),
+//     for edge 10 voxels 987 (N_eps(T): 797, Obb: 1407). With Complete every voxel centre of the eps band is covered by the shell of its
+//     closest triangle whatever the shell, so the scan-converted band is exact; aliasing does not
+//     arise because coverage is a property of the voxel centres themselves (the rasterizer tests
+//     centres, with a 1e-7-voxel tolerance for round-off).
+//   * ShellCoverage::Paper keeps the paper's hulls as they are (for comparison with its Figures
+//     20–28): voxels they miss are either absent or hold the distance to another (farther)
+//     triangle that covers them. TestTetScanConversion measures both; docs/scan-conversion.md
+//     reports the numbers.
 //
 // Convex hulls of <= 12 points are computed here by hand (exhaustive facet test, O(n^4) with
 // n <= 12, exact up to a relative tolerance), coplanar facets fan-triangulated once, so no
@@ -44,10 +61,18 @@ namespace levelforge {
 
 enum class ShellMethod : uint8_t { PseudoNormal = 0, Thin, Offset, Obb };
 
+/// Complete: every shell contains the eps-neighbourhood of its face (the pseudonormal family is
+/// completed to the eps-prism, see above); Paper: the hulls exactly as the paper builds them.
+enum class ShellCoverage : uint8_t { Complete = 0, Paper };
+
 /// "pseudonormal", "thin", "offset", "obb".
 const char* toString(ShellMethod method);
 /// Inverse of toString; throws InvalidArgumentError on an unknown name.
 ShellMethod shellMethodFromString(const std::string& name);
+/// "complete", "paper".
+const char* toString(ShellCoverage coverage);
+/// Inverse of toString; throws InvalidArgumentError on an unknown name.
+ShellCoverage shellCoverageFromString(const std::string& name);
 
 /// One tetrahedron of a shell, tagged with the triangle it bounds.
 struct Tetrahedron
@@ -61,6 +86,7 @@ struct TetrahedralShellOptions
     ShellMethod method = ShellMethod::Obb;
     /// Narrow-band width eps, in the units of the mesh points (> 0).
     double epsilon = 1.0;
+    ShellCoverage coverage = ShellCoverage::Complete;
 };
 
 struct TetrahedralShellStats
@@ -69,6 +95,7 @@ struct TetrahedralShellStats
     uint64_t skippedDegenerate = 0; ///< zero-area faces (no shell)
     uint64_t tetrahedra = 0;
     uint64_t limitedExtrusions = 0; ///< Thin: faces whose extrusion was shortened below eps
+    uint64_t completedFaces = 0;    ///< faces whose paper hull was completed to the eps-prism
     double tetrahedraPerFace() const { return faces ? double(tetrahedra) / double(faces) : 0.0; }
 };
 
@@ -98,6 +125,13 @@ double thinShellExtrusionLimit(const std::array<Vec3d, 3>& p, const std::array<V
 /// bit 2: along the normal) and its 5-tetrahedron decomposition.
 std::array<Vec3d, 8> obbCorners(const Vec3d& a, const Vec3d& b, const Vec3d& c, double eps);
 void obbTetrahedra(const std::array<Vec3d, 8>& corners, uint32_t triangle, std::vector<Tetrahedron>& out);
+
+/// The 12 corners of the eps-prism of triangle (a, b, c) (see the file comment): corners 0–5 are
+/// the hexagon at -eps along the face normal, in order around it, 6–11 the same at +eps.
+std::array<Vec3d, 12> epsilonPrism(const Vec3d& a, const Vec3d& b, const Vec3d& c, double eps);
+/// 12 tetrahedra whose union is the prism (4 triangular prisms of a fan, 3 tetrahedra each);
+/// zero-volume ones are dropped.
+void prismTetrahedra(const std::array<Vec3d, 12>& corners, uint32_t triangle, std::vector<Tetrahedron>& out);
 
 /// Unsigned volume of a tetrahedron.
 double volume(const Tetrahedron& t);
