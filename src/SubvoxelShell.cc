@@ -1,6 +1,8 @@
 // levelforge — sub-voxel shell of closest-point vectors (see SubvoxelShell.h).
 #include <levelforge/SubvoxelShell.h>
 
+#include "IsoSurfaceCells.h"
+
 #include <levelforge/Exceptions.h>
 #include <levelforge/TriangleDistance.h>
 
@@ -19,6 +21,9 @@
 namespace levelforge {
 namespace {
 
+using iso_surface_internal::Tri;
+using iso_surface_internal::cellTriangles;
+
 using Clock = std::chrono::steady_clock;
 
 void checkVolume(const ScalarVolume& f)
@@ -29,45 +34,6 @@ void checkVolume(const ScalarVolume& f)
         os << "sub-voxel shell: the volume must have at least 2 samples along each axis, got "
            << f.dims.x() << "x" << f.dims.y() << "x" << f.dims.z();
         throw InvalidArgumentError(os.str());
-    }
-}
-
-/// The 6 tetrahedra of a cell around the diagonal 0 -> 7 (corner bits: x = 1, y = 2, z = 4).
-constexpr int kTets[6][4] = {{0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7},
-                             {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7}};
-
-struct Tri
-{
-    Vec3d a, b, c;
-};
-
-/// Appends the 0–2 triangles of one cell (corner values v, corner world positions p).
-template<typename Out>
-void cellTriangles(const double v[8], const Vec3d p[8], double iso, bool insideBelow, Out&& out)
-{
-    for (const auto& t : kTets) {
-        int in[4], nIn = 0, outc[4], nOut = 0;
-        for (int k = 0; k < 4; ++k) {
-            const bool inside = insideBelow ? v[t[k]] <= iso : v[t[k]] >= iso;
-            if (inside) in[nIn++] = t[k];
-            else outc[nOut++] = t[k];
-        }
-        if (nIn == 0 || nOut == 0) continue;
-        auto cross = [&](int a, int b) { // point on edge a-b where the field equals iso
-            const double da = v[a] - iso, db = v[b] - iso;
-            double s = da / (da - db);
-            if (!(s >= 0.0)) s = 0.0;
-            if (s > 1.0) s = 1.0;
-            return p[a] + (p[b] - p[a]) * s;
-        };
-        if (nIn == 1) out(Tri{cross(in[0], outc[0]), cross(in[0], outc[1]), cross(in[0], outc[2])});
-        else if (nOut == 1) out(Tri{cross(outc[0], in[0]), cross(outc[0], in[1]), cross(outc[0], in[2])});
-        else {
-            const Vec3d q0 = cross(in[0], outc[0]), q1 = cross(in[0], outc[1]), q2 = cross(in[1], outc[1]),
-                        q3 = cross(in[1], outc[0]);
-            out(Tri{q0, q1, q2});
-            out(Tri{q0, q2, q3});
-        }
     }
 }
 

@@ -830,12 +830,13 @@ ScalarVolume readRawStream(InputFile& in, const RawVolumeLayout& layout, uint64_
 // -------------------------------------------------------------------------------------- vdb
 
 template<typename GridT>
-ScalarVolume denseFromGrid(const std::string& path, const GridT& grid, uint64_t maxVoxels)
+ScalarVolume denseFromGrid(const std::string& path, const GridT& grid, uint64_t maxVoxels, int padding)
 {
-    const openvdb::CoordBBox bbox = grid.evalActiveVoxelBoundingBox();
+    openvdb::CoordBBox bbox = grid.evalActiveVoxelBoundingBox();
     if (bbox.empty() || grid.activeVoxelCount() == 0) {
         throwInvalid(path, "grid '" + grid.getName() + "' has no active voxels");
     }
+    bbox.expand(std::max(0, padding));
     const openvdb::Coord d = bbox.dim();
     const int64_t dims[3] = {d.x(), d.y(), d.z()};
     const char* dimNames[3] = {"x", "y", "z"};
@@ -847,7 +848,8 @@ ScalarVolume denseFromGrid(const std::string& path, const GridT& grid, uint64_t 
     return vol;
 }
 
-ScalarVolume readVdb(const std::string& path, const ReadVolumeOptions& options, VolumeInfo& info)
+/// The scalar grid readVdb() converts (checked: scalar type, axis-aligned positive scale).
+openvdb::GridBase::Ptr chooseScalarGrid(const std::string& path, const ReadVolumeOptions& options, VolumeInfo& info)
 {
     {
         // Existence and type checks with this module's messages; readGrids() does the rest.
@@ -911,18 +913,28 @@ ScalarVolume readVdb(const std::string& path, const ReadVolumeOptions& options, 
         }
     }
 
+    return chosen;
+}
+
+ScalarVolume readVdb(const std::string& path, const ReadVolumeOptions& options, VolumeInfo& info)
+{
+    const openvdb::GridBase::Ptr chosen = chooseScalarGrid(path, options, info);
+    const openvdb::math::Transform& xf = chosen->transform();
+    const std::string gridText = "grid '" + chosen->getName() + "': ";
+    const openvdb::Mat4d m = xf.baseMap()->getAffineMap()->getMat4();
     ScalarVolume vol;
     switch (info.sourceType) {
     case VolumeValueType::Float32:
-        vol = denseFromGrid(path, static_cast<const openvdb::FloatGrid&>(*chosen), options.maxVoxels); break;
+        vol = denseFromGrid(path, static_cast<const openvdb::FloatGrid&>(*chosen), options.maxVoxels, options.vdbPadding); break;
     case VolumeValueType::Float64:
-        vol = denseFromGrid(path, static_cast<const openvdb::DoubleGrid&>(*chosen), options.maxVoxels); break;
+        vol = denseFromGrid(path, static_cast<const openvdb::DoubleGrid&>(*chosen), options.maxVoxels, options.vdbPadding); break;
     case VolumeValueType::Int32:
-        vol = denseFromGrid(path, static_cast<const openvdb::Int32Grid&>(*chosen), options.maxVoxels); break;
+        vol = denseFromGrid(path, static_cast<const openvdb::Int32Grid&>(*chosen), options.maxVoxels, options.vdbPadding); break;
     default:
-        vol = denseFromGrid(path, static_cast<const openvdb::Int64Grid&>(*chosen), options.maxVoxels); break;
+        vol = denseFromGrid(path, static_cast<const openvdb::Int64Grid&>(*chosen), options.maxVoxels, options.vdbPadding); break;
     }
-    const openvdb::CoordBBox bbox = chosen->evalActiveVoxelBoundingBox();
+    openvdb::CoordBBox bbox = chosen->evalActiveVoxelBoundingBox();
+    bbox.expand(std::max(0, options.vdbPadding));
     vol.spacing = openvdb::Vec3d(m[0][0], m[1][1], m[2][2]);
     vol.origin = xf.indexToWorld(bbox.min());
     finish(path, vol, info, gridText.substr(0, gridText.size() - 2));
@@ -1128,6 +1140,34 @@ ScalarVolume readRaw(const std::string& path, const RawVolumeLayout& layout, uin
     ScalarVolume vol = volumeio_internal::readRawStream(in, layout, maxVoxels, local);
     if (info) *info = std::move(local);
     return vol;
+}
+
+openvdb::FloatGrid::Ptr readVdbScalarGrid(const std::string& path, const ReadVolumeOptions& options, VolumeInfo* info)
+{
+    VolumeInfo local;
+    const openvdb::GridBase::Ptr chosen = volumeio_internal::chooseScalarGrid(path, options, local);
+    openvdb::FloatGrid::Ptr out;
+    switch (local.sourceType) {
+    case VolumeValueType::Float32:
+        out = openvdb::gridPtrCast<openvdb::FloatGrid>(chosen)->deepCopy();
+        break;
+    case VolumeValueType::Float64:
+        out = openvdb::FloatGrid::create(std::make_shared<openvdb::FloatTree>(
+            openvdb::gridConstPtrCast<openvdb::DoubleGrid>(chosen)->tree()));
+        break;
+    case VolumeValueType::Int32:
+        out = openvdb::FloatGrid::create(std::make_shared<openvdb::FloatTree>(
+            openvdb::gridConstPtrCast<openvdb::Int32Grid>(chosen)->tree()));
+        break;
+    default:
+        out = openvdb::FloatGrid::create(std::make_shared<openvdb::FloatTree>(
+            openvdb::gridConstPtrCast<openvdb::Int64Grid>(chosen)->tree()));
+        break;
+    }
+    out->setTransform(chosen->transform().copy());
+    out->setName(chosen->getName());
+    if (info) *info = std::move(local);
+    return out;
 }
 
 ScalarVolume readVdbVolume(const std::string& path, const ReadVolumeOptions& options, VolumeInfo* info)

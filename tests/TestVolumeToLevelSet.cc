@@ -8,6 +8,8 @@
 #include <levelforge/VolumeIO.h>
 #include <levelforge/VolumeToLevelSet.h>
 
+#include <openvdb/tools/LevelSetSphere.h>
+
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -181,6 +183,50 @@ TEST(VolumeToSdfCli, NiftiToLevelSetAndErrors)
     EXPECT_EQ(run("volume-to-sdf '" + (dir / "none.nii").string() + "' '" + bad + "' --quiet", dir, &err), 1) << err;
     EXPECT_NE(err.find("none.nii"), std::string::npos) << err;
     EXPECT_EQ(run("volume-to-sdf '" + nii + "' '" + bad + "' --method vcvdt16", dir, &err), 2) << err;
+    EXPECT_FALSE(std::filesystem::exists(bad));
+}
+
+TEST(VolumeToSdfCli, SparseVdbInput)
+{
+    // A double-precision level-set sphere in a .vdb: --sparse keeps it sparse, signs by --invert.
+    const auto dir = levelforge_test::scratchDir("volume_to_sdf_sparse");
+    const std::string in = (dir / "ball.vdb").string(), out = (dir / "ball_sdf.vdb").string();
+    {
+        auto f = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(6.3f, openvdb::Vec3f(0.2f, -0.4f, 0.1f), 0.25f, 3.0f);
+        auto d = openvdb::DoubleGrid::create(std::make_shared<openvdb::DoubleTree>(f->tree()));
+        d->setTransform(f->transform().copy());
+        d->setName("sdf");
+        openvdb::io::File file(in);
+        file.write({d});
+        file.close();
+    }
+    std::string err;
+    ASSERT_EQ(run("volume-to-sdf '" + in + "' '" + out + "' --iso 0 --invert --subvoxel --sparse --exterior-band 8 --quiet",
+                  dir, &err), 0) << err;
+    const std::string text = slurp(dir / "out.txt");
+    EXPECT_NE(text.find("grid 'sdf' (float64"), std::string::npos) << text;
+    EXPECT_NE(text.find("widened by the sparse vcvdt8"), std::string::npos) << text;
+    auto grids = readGrids(out);
+    auto g = openvdb::gridPtrCast<openvdb::FloatGrid>((*grids)[0]);
+    ASSERT_TRUE(g);
+    EXPECT_EQ(g->metaValue<std::string>("levelforge:method"), "satherley-jones-vcvdt8-subvoxel-sparse");
+    EXPECT_NEAR(g->voxelSize()[0], 0.25, 1e-12);
+    double mx = 0;
+    for (auto it = g->cbeginValueOn(); it; ++it) {
+        const double exact = (g->indexToWorld(it.getCoord()) - openvdb::Vec3d(0.2, -0.4, 0.1)).length() - 6.3;
+        mx = std::max(mx, std::abs(double(*it) - exact) / 0.25);
+    }
+    EXPECT_LT(mx, 0.1);
+    EXPECT_GT(g->activeVoxelCount(), 30000u);
+    // --sparse on a non-.vdb input, or without --subvoxel: one error line, no output.
+    const std::string nii = (dir / "ball.nii").string(), bad = (dir / "bad.vdb").string();
+    writeNifti(nii, makeSphereField(openvdb::Coord(16), Vec3d(7.5), 5.0));
+    EXPECT_EQ(run("volume-to-sdf '" + nii + "' '" + bad + "' --subvoxel --sparse --quiet", dir, &err), 2) << err;
+    EXPECT_NE(err.find("not a .vdb file"), std::string::npos) << err;
+    EXPECT_EQ(run("volume-to-sdf '" + in + "' '" + bad + "' --sparse --quiet", dir, &err), 2) << err;
+    EXPECT_NE(err.find("--subvoxel"), std::string::npos) << err;
+    EXPECT_EQ(run("volume-to-sdf '" + in + "' '" + bad + "' --sparse --subvoxel --iso 100 --quiet", dir, &err), 1) << err;
+    EXPECT_NE(err.find("ball.vdb: grid 'sdf': no surface at iso-value 100"), std::string::npos) << err;
     EXPECT_FALSE(std::filesystem::exists(bad));
 }
 

@@ -6,13 +6,17 @@
 #include "OperatorText.h"
 
 #include <levelforge/Exceptions.h>
+#include <levelforge/SparseVolumeToLevelSet.h>
 #include <levelforge/VdbIO.h>
 #include <levelforge/VolumeIO.h>
 #include <levelforge/VolumeToLevelSet.h>
 
 #include <openvdb/openvdb.h>
 
+#include <algorithm>
+#include <cctype>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <ostream>
 #include <sstream>
@@ -64,6 +68,13 @@ ScalarVolume loadVolumeArg(OperatorArgs& args, const std::string& input, VolumeI
     }
     ReadVolumeOptions ro;
     if (args.has("vdb-grid") && args.isSet("vdb-grid")) ro.vdbGridName = args.getString("vdb-grid");
+    if (args.has("exterior-band")) {
+        // .vdb: densify the active box plus the band, so the band around data that reaches the
+        // box (a narrow-band level set, a cropped fog) is not clipped.
+        const double band = std::max(args.getFloat("exterior-band"),
+                                     args.getBool("fill-interior") ? 0.0 : args.getFloat("interior-band"));
+        ro.vdbPadding = int(std::min(std::ceil(band) + 1.0, 1.0e6));
+    }
     if (args.isSet("raw-dims")) {
         RawVolumeLayout raw;
         const auto d = parseTriple(args.getString("raw-dims"), "raw-dims");
@@ -84,16 +95,8 @@ ScalarVolume loadVolumeArg(OperatorArgs& args, const std::string& input, VolumeI
 
 namespace {
 
-void cookVolumeToSdf(OperatorArgs& args)
+VolumeToLevelSetOptions levelSetOptionsFrom(OperatorArgs& args)
 {
-    using Clock = std::chrono::steady_clock;
-    const auto t0 = Clock::now();
-    const std::string& input = args.input("volume");
-    const std::string& output = args.output("output");
-    checkOutputPath(output);
-    VolumeInfo info;
-    const ScalarVolume volume = loadVolumeArg(args, input, info);
-
     VolumeToLevelSetOptions opt;
     opt.iso = float(args.getFloat("iso"));
     opt.insideBelow = args.getBool("invert");
@@ -103,11 +106,87 @@ void cookVolumeToSdf(OperatorArgs& args)
     opt.interiorWidth = args.getFloat("interior-band");
     opt.fillInterior = args.getBool("fill-interior");
     opt.gridName = args.getString("grid-name");
-    CliProgress progress(10, !args.getBool("quiet"));
-    opt.interrupter = &progress;
     if (!args.isSet("iso")) {
         args.err() << "levelforge: note: no --iso given; using 0 (samples >= 0 are inside)\n";
     }
+    return opt;
+}
+
+bool isVdbPath(const std::string& path)
+{
+    if (path.size() < 4) return false;
+    std::string ext = path.substr(path.size() - 4);
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return ext == ".vdb";
+}
+
+/// --sparse: a .vdb grid converted on its own topology (SparseVolumeToLevelSet.h).
+void cookSparse(OperatorArgs& args, const std::string& input, const std::string& output,
+                std::chrono::steady_clock::time_point t0)
+{
+    using Clock = std::chrono::steady_clock;
+    if (!isVdbPath(input))
+        throw UsageError("--sparse reads a .vdb grid; '" + input + "' is not a .vdb file (drop --sparse to densify "
+                         "other formats)");
+    if (!args.getBool("subvoxel"))
+        throw UsageError("--sparse needs --subvoxel (the sparse path builds the sub-voxel shell)");
+    ReadVolumeOptions ro;
+    if (args.isSet("vdb-grid")) ro.vdbGridName = args.getString("vdb-grid");
+    VolumeInfo info;
+    const openvdb::FloatGrid::Ptr field = readVdbScalarGrid(input, ro, &info);
+    VolumeToLevelSetOptions opt = levelSetOptionsFrom(args);
+    CliProgress progress(10, !args.getBool("quiet"));
+    opt.interrupter = &progress;
+    SparseVolumeToLevelSetStats st;
+    const auto t1 = Clock::now();
+    openvdb::FloatGrid::Ptr grid;
+    try {
+        grid = sparseVolumeToLevelSet(*field, opt, &st);
+    } catch (const InvalidArgumentError& e) {
+        throw InvalidArgumentError(input + ": " + e.what());
+    }
+    const double seconds = std::chrono::duration<double>(Clock::now() - t1).count();
+    const std::string method = std::string("satherley-jones-") + volumeDistanceMethodName(opt.method) + "-subvoxel-sparse";
+    stampLevelSetMetadata(*grid, opt.exteriorWidth, opt.fillInterior ? grid->background() / grid->voxelSize()[0] : opt.interiorWidth,
+                          input, method);
+    grid->insertMeta("levelforge:iso", openvdb::FloatMetadata(opt.iso));
+    openvdb::MetaMap fileMeta;
+    fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
+    writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
+    std::ostream& os = args.out();
+    os << "levelforge: wrote " << output << "\n"
+       << "  volume: grid '" << info.gridName << "' (" << volumeValueTypeName(info.sourceType) << ", "
+       << field->activeVoxelCount() << " active voxels, " << field->tree().leafCount()
+       << " leaves), voxel size " << field->voxelSize()[0] << ", sparse\n"
+       << "  surface: iso " << opt.iso << (opt.insideBelow ? " (inside below)" : " (inside above)") << ", "
+       << st.triangles << " triangles in " << st.surfaceCells << " of " << st.candidateCells << " candidate cells\n"
+       << "  transform: exact band " << st.exactBand << " voxels (" << st.exactVoxels << " voxels)"
+       << (st.widened ? ", widened by the sparse vcvdt8" : "") << ", "
+       << grid->activeVoxelCount() << " active voxels in the band\n"
+       << "  time: " << fmt("%.2f", seconds) << " s (surface " << fmt("%.2f", st.secondsSurface) << ", exact "
+       << fmt("%.2f", st.secondsExact) << " [voxelize " << fmt("%.2f", st.exact.secondsVoxelize) << ", lists "
+       << fmt("%.2f", st.exact.secondsLists) << ", distance " << fmt("%.2f", st.exact.secondsDistance) << "], widen "
+       << fmt("%.2f", st.secondsWiden) << "), "
+       << fmt("%.2f", std::chrono::duration<double>(Clock::now() - t0).count()) << " s total\n";
+}
+
+void cookVolumeToSdf(OperatorArgs& args)
+{
+    using Clock = std::chrono::steady_clock;
+    const auto t0 = Clock::now();
+    const std::string& input = args.input("volume");
+    const std::string& output = args.output("output");
+    checkOutputPath(output);
+    if (args.getBool("sparse")) {
+        cookSparse(args, input, output, t0);
+        return;
+    }
+    VolumeInfo info;
+    const ScalarVolume volume = loadVolumeArg(args, input, info);
+
+    VolumeToLevelSetOptions opt = levelSetOptionsFrom(args);
+    CliProgress progress(10, !args.getBool("quiet"));
+    opt.interrupter = &progress;
 
     VolumeToLevelSetStats st;
     const auto t1 = Clock::now();
@@ -185,6 +264,10 @@ LEVELFORGE_REGISTER_OPERATOR(
         .param(Param::string("grid-name", "Grid Name", "Name of the grid in the .vdb file")
                    .defaultValue("surface"))
         .param(Param::string("vdb-grid", "Input VDB Grid", "Grid to read from a .vdb input (default: the first scalar grid)"))
+        .param(Param::flag("sparse", "Sparse",
+                           ".vdb input: work on the grid's own sparse topology (exact band around the "
+                           "interpolated surface, widened by the sparse VCVDT) instead of densifying its "
+                           "bounding box; needs --subvoxel and vcvdt8 or exact, uniform voxels"))
         .param(Param::string("raw-dims", "Raw Dimensions", "Raw input: samples along x,y,z, e.g. 256,256,113"))
         .param(Param::string("raw-type", "Raw Type",
                              "Raw input: uint8, int8, uint16, int16, uint32, int32, uint64, int64, float32, float64")
@@ -198,6 +281,7 @@ LEVELFORGE_REGISTER_OPERATOR(
         .param(Param::flag("quiet", "Quiet", "Print no progress on stderr"))
         .example("levelforge volume-to-sdf brain.nii.gz brain.vdb --iso 80 --method vcvdt8 --subvoxel")
         .example("levelforge volume-to-sdf skull.inr skull.vdb --iso 2.9 --subvoxel --exterior-band 10")
+        .example("levelforge volume-to-sdf smoke.vdb smoke_sdf.vdb --vdb-grid density --iso 0.1 --subvoxel --sparse")
         .example("levelforge volume-to-sdf ct.raw ct.vdb --raw-dims 256,256,113 --raw-type uint16 --iso 600")
         .cook(cookVolumeToSdf));
 

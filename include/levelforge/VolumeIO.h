@@ -37,6 +37,8 @@
 #include <levelforge/DenseVolume.h>
 #include <levelforge/Exceptions.h>
 
+#include <openvdb/openvdb.h>
+
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -99,6 +101,9 @@ struct ReadVolumeOptions
     /// .vdb: the grid to read; empty: the first float, double, int32 or int64 grid in the
     /// order OpenVDB lists a file's grids (by name).
     std::string vdbGridName;
+    /// .vdb: voxels added on every side of the active bounding box (the dense box then also holds
+    /// the band a distance transform will fill around data that ends at the box), >= 0.
+    int vdbPadding = 0;
     /// Largest number of samples accepted; more throws ResourceLimitError (default 2^31,
     /// i.e. 8 GiB of floats).
     uint64_t maxVoxels = uint64_t(1) << 31;
@@ -131,12 +136,18 @@ ScalarVolume readRaw(const std::string& path, const RawVolumeLayout& layout,
                      uint64_t maxVoxels = uint64_t(1) << 31, VolumeInfo* info = nullptr);
 
 /// Reads a scalar grid (float, double, int32 or int64) of a .vdb file as a dense volume over
-/// its active-voxel bounding box. Voxels inside the box that are inactive keep the value the
+/// its active-voxel bounding box grown by ReadVolumeOptions::vdbPadding. Voxels inside the box that are inactive keep the value the
 /// tree holds there (the background, or -background inside a level set). The transform must
 /// be linear, axis-aligned with positive scale (a translation is fine): spacing = voxel size,
 /// origin = world position of the bounding box minimum.
 ScalarVolume readVdbVolume(const std::string& path, const ReadVolumeOptions& options = {},
                            VolumeInfo* info = nullptr);
+
+/// The same grid as readVdbVolume() chooses (same checks and errors), kept sparse: a FloatGrid
+/// sharing nothing with the file (double and integer grids are converted to float), with its
+/// transform, for sparseVolumeToLevelSet() (SparseVolumeToLevelSet.h). No dense box is made.
+openvdb::FloatGrid::Ptr readVdbScalarGrid(const std::string& path, const ReadVolumeOptions& options = {},
+                                          VolumeInfo* info = nullptr);
 
 /// Writes @a volume as a float32 NIfTI-1 single file (.nii, or gzip-compressed when @a path
 /// ends with .gz). Spacing goes to pixdim, the origin to qoffset and to the sform's last
