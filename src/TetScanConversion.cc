@@ -62,57 +62,6 @@ int sliceTetrahedron(const Tetrahedron& tet, double z, double* x, double* y)
     return 3;
 }
 
-bool conservativeFootprint(const Tetrahedron& tet, int z, CrossSection& cs)
-{
-    double zmin = tet.p[0][2], zmax = zmin;
-    for (int k = 1; k < 4; ++k) { zmin = std::min(zmin, tet.p[k][2]); zmax = std::max(zmax, tet.p[k][2]); }
-    const double za = std::max(double(z) - 0.5, zmin), zb = std::min(double(z) + 0.5, zmax);
-    if (za > zb) return false;
-    // Points of the tetrahedron clipped to [za, zb], projected: both slices + corners in between.
-    struct P { double x, y; };
-    P pts[64];
-    int n = 0;
-    double sx[4], sy[4];
-    for (double zz : {za, zb}) {
-        const int m = sliceTetrahedron(tet, zz, sx, sy);
-        for (int i = 0; i < m; ++i) pts[n++] = {sx[i], sy[i]};
-    }
-    for (int k = 0; k < 4; ++k)
-        if (tet.p[k][2] >= za && tet.p[k][2] <= zb) pts[n++] = {tet.p[k][0], tet.p[k][1]};
-    // Minkowski sum with the cell's square [-1/2, 1/2]^2, then the 2-D convex hull.
-    P q[64];
-    int nq = 0;
-    for (int i = 0; i < n; ++i)
-        for (int c = 0; c < 4; ++c) q[nq++] = {pts[i].x + ((c & 1) ? 0.5 : -0.5), pts[i].y + ((c & 2) ? 0.5 : -0.5)};
-    std::sort(q, q + nq, [](const P& a, const P& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
-    auto cross = [](const P& o, const P& a, const P& b) { return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x); };
-    P h[130];
-    int k = 0;
-    for (int i = 0; i < nq; ++i) {
-        while (k >= 2 && cross(h[k - 2], h[k - 1], q[i]) <= 0.0) --k;
-        h[k++] = q[i];
-    }
-    for (int i = nq - 2, t = k + 1; i >= 0; --i) {
-        while (k >= t && cross(h[k - 2], h[k - 1], q[i]) <= 0.0) --k;
-        h[k++] = q[i];
-    }
-    k = std::max(k - 1, 1);
-    // A convex polygon plus a square has at most (polygon vertices + 4) vertices; the clipped
-    // tetrahedron projects to at most 12, so 16 suffice.
-    if (k > CrossSection::kMaxVertices) k = CrossSection::kMaxVertices; // unreachable
-    cs.count = uint32_t(k);
-    for (int i = 0; i < k; ++i) { cs.x[i] = h[i].x; cs.y[i] = h[i].y; }
-    return true;
-}
-
-
-/// The shell of one face: tets[first, first + count) of the face-ordered tetrahedron list.
-struct SortedShell
-{
-    uint32_t triangle, first, count;
-    double zmin, zmax;
-};
-
 /// Convex hull (counter-clockwise, collinear points dropped) of n points into cs. False if it has
 /// more than CrossSection::kMaxVertices vertices. A hull that degenerates to a segment or a point
 /// keeps its 1–2 vertices (crossSectionSpan handles them).
@@ -144,6 +93,41 @@ bool convexPolygon(Point2* pts, int n, CrossSection& cs)
     for (int i = 0; i < k; ++i) { cs.x[i] = h[i].x; cs.y[i] = h[i].y; }
     return true;
 }
+
+bool conservativeFootprint(const Tetrahedron& tet, int z, CrossSection& cs)
+{
+    double zmin = tet.p[0][2], zmax = zmin;
+    for (int k = 1; k < 4; ++k) { zmin = std::min(zmin, tet.p[k][2]); zmax = std::max(zmax, tet.p[k][2]); }
+    const double za = std::max(double(z) - 0.5, zmin), zb = std::min(double(z) + 0.5, zmax);
+    if (za > zb) return false;
+    // Points of the tetrahedron clipped to [za, zb], projected: both slices + corners in between.
+    Point2 pts[16];
+    int n = 0;
+    double sx[4], sy[4];
+    for (double zz : {za, zb}) {
+        const int m = sliceTetrahedron(tet, zz, sx, sy);
+        for (int i = 0; i < m; ++i) pts[n++] = {sx[i], sy[i]};
+    }
+    for (int k = 0; k < 4; ++k)
+        if (tet.p[k][2] >= za && tet.p[k][2] <= zb) pts[n++] = {tet.p[k][0], tet.p[k][1]};
+    // Minkowski sum with the cell's square [-1/2, 1/2]^2, then the 2-D convex hull. A convex
+    // polygon plus a square has at most (polygon vertices + 4) vertices; the clipped tetrahedron
+    // projects to at most 12, so CrossSection's 16 suffice.
+    Point2 q[64];
+    int nq = 0;
+    for (int i = 0; i < n; ++i)
+        for (int c = 0; c < 4; ++c) q[nq++] = {pts[i].x + ((c & 1) ? 0.5 : -0.5), pts[i].y + ((c & 2) ? 0.5 : -0.5)};
+    return convexPolygon(q, nq, cs);
+}
+
+
+/// The shell of one face: tets[first, first + count) of the face-ordered tetrahedron list.
+struct SortedShell
+{
+    uint32_t triangle, first, count;
+    double zmin, zmax;
+};
+
 
 struct Binned
 {

@@ -43,6 +43,19 @@ bool insideAny(const std::vector<Tetrahedron>& tets, const Vec3d& p, double tol 
     return false;
 }
 
+/// A random point of triangle v plus an offset of length r in a random direction.
+Vec3d pointNearTriangle(std::mt19937_64& rng, const Vec3d v[3], double r)
+{
+    double a = uniform(rng, 0, 1), b = uniform(rng, 0, 1);
+    if (a + b > 1) { a = 1 - a; b = 1 - b; }
+    const Vec3d base = v[0] + (v[1] - v[0]) * a + (v[2] - v[0]) * b;
+    Vec3d dir;
+    do dir = Vec3d(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
+    while (dir.length() < 1e-6);
+    dir.normalize();
+    return base + dir * r;
+}
+
 bool insidePolygon(const std::array<double, 4>& x, const std::array<double, 4>& y, int n, double px, double py)
 {
     CrossSection cs;
@@ -145,17 +158,8 @@ TEST(TetrahedralShell, ObbContainsTheEpsNeighbourhood)
         std::vector<Tetrahedron> tets;
         shell_internal::obbTetrahedra(shell_internal::obbCorners(v[0], v[1], v[2], eps), 0, tets);
         ASSERT_EQ(tets.size(), 5u);
-        for (int s = 0; s < 200; ++s) {
-            // A point within eps of the triangle: random point of the triangle + a random offset.
-            double a = uniform(rng, 0, 1), b = uniform(rng, 0, 1);
-            if (a + b > 1) { a = 1 - a; b = 1 - b; }
-            const Vec3d base = v[0] + (v[1] - v[0]) * a + (v[2] - v[0]) * b;
-            Vec3d dir(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
-            if (dir.length() < 1e-6) continue;
-            dir.normalize();
-            const Vec3d q = base + dir * (eps * std::cbrt(uniform(rng, 0, 1)));
-            EXPECT_TRUE(insideAny(tets, q, 1e-9));
-        }
+        for (int s = 0; s < 200; ++s)
+            EXPECT_TRUE(insideAny(tets, pointNearTriangle(rng, v, eps * std::cbrt(uniform(rng, 0, 1))), 1e-9));
     }
 }
 
@@ -186,15 +190,9 @@ TEST(TetrahedralShell, EpsilonPrismContainsTheEpsNeighbourhoodAndThePaperHulls)
         Vec3d n = (v[1] - v[0]).cross(v[2] - v[0]);
         n.normalize();
         for (int s = 0; s < 300; ++s) {
-            double a = uniform(rng, 0, 1), b = uniform(rng, 0, 1);
-            if (a + b > 1) { a = 1 - a; b = 1 - b; }
-            const Vec3d base = v[0] + (v[1] - v[0]) * a + (v[2] - v[0]) * b;
-            Vec3d dir(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
-            if (dir.length() < 1e-6) continue;
-            dir.normalize();
             // Half the samples on the boundary of N_eps(T) (the hardest case), half inside.
             const double r = (s % 2) ? eps * (1.0 - 1e-12) : eps * std::cbrt(uniform(rng, 0, 1));
-            EXPECT_TRUE(insideAny(tets, base + dir * r, 1e-9)) << "trial " << trial;
+            EXPECT_TRUE(insideAny(tets, pointNearTriangle(rng, v, r), 1e-9)) << "trial " << trial;
             ++tested;
         }
         // Paper hull points: vertex +- eps * (any unit normal) and +- eps * face normal.

@@ -112,6 +112,18 @@ VolumeToLevelSetOptions levelSetOptionsFrom(OperatorArgs& args)
     return opt;
 }
 
+/// Level-set metadata (widths in voxels of the smallest spacing hmin), the iso-value, atomic write.
+void writeVolumeLevelSet(const openvdb::FloatGrid::Ptr& grid, const VolumeToLevelSetOptions& opt, double hmin,
+                         const std::string& input, const std::string& output, const std::string& method)
+{
+    stampLevelSetMetadata(*grid, opt.exteriorWidth, opt.fillInterior ? grid->background() / hmin : opt.interiorWidth,
+                          input, method);
+    grid->insertMeta("levelforge:iso", openvdb::FloatMetadata(opt.iso));
+    openvdb::MetaMap fileMeta;
+    fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
+    writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
+}
+
 bool isVdbPath(const std::string& path)
 {
     if (path.size() < 4) return false;
@@ -146,13 +158,8 @@ void cookSparse(OperatorArgs& args, const std::string& input, const std::string&
         throw InvalidArgumentError(input + ": " + e.what());
     }
     const double seconds = std::chrono::duration<double>(Clock::now() - t1).count();
-    const std::string method = std::string("satherley-jones-") + volumeDistanceMethodName(opt.method) + "-subvoxel-sparse";
-    stampLevelSetMetadata(*grid, opt.exteriorWidth, opt.fillInterior ? grid->background() / grid->voxelSize()[0] : opt.interiorWidth,
-                          input, method);
-    grid->insertMeta("levelforge:iso", openvdb::FloatMetadata(opt.iso));
-    openvdb::MetaMap fileMeta;
-    fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
+    writeVolumeLevelSet(grid, opt, grid->voxelSize()[0], input, output,
+                        std::string("satherley-jones-") + volumeDistanceMethodName(opt.method) + "-subvoxel-sparse");
     std::ostream& os = args.out();
     os << "levelforge: wrote " << output << "\n"
        << "  volume: grid '" << info.gridName << "' (" << volumeValueTypeName(info.sourceType) << ", "
@@ -192,15 +199,9 @@ void cookVolumeToSdf(OperatorArgs& args)
     const auto t1 = Clock::now();
     openvdb::FloatGrid::Ptr grid = volumeToLevelSet(volume, opt, &st);
     const double seconds = std::chrono::duration<double>(Clock::now() - t1).count();
-    const std::string method = std::string("satherley-jones-") + volumeDistanceMethodName(opt.method) +
-                               (opt.subvoxel ? "-subvoxel" : "-binary");
-    const double hmin = std::min({volume.spacing[0], volume.spacing[1], volume.spacing[2]});
-    stampLevelSetMetadata(*grid, opt.exteriorWidth, opt.fillInterior ? grid->background() / hmin : opt.interiorWidth,
-                          input, method);
-    grid->insertMeta("levelforge:iso", openvdb::FloatMetadata(opt.iso));
-    openvdb::MetaMap fileMeta;
-    fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
+    writeVolumeLevelSet(grid, opt, std::min({volume.spacing[0], volume.spacing[1], volume.spacing[2]}), input, output,
+                        std::string("satherley-jones-") + volumeDistanceMethodName(opt.method) +
+                            (opt.subvoxel ? "-subvoxel" : "-binary"));
 
     std::ostream& os = args.out();
     os << "levelforge: wrote " << output << "\n"
