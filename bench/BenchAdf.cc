@@ -1,7 +1,7 @@
 // levelforge_bench_adf: adaptively sampled distance fields (Yin, Liu, Wu 2011; issue 6).
 //
 //   levelforge_bench_adf [--res 128,256,512] [--subdivide N] [--threads N] [--repeat N]
-//                        [--errors N] [--no-bounds] [--bound-stride N] [--png out.png] mesh.obj ...
+//                        [--errors N] [--no-bounds] [--bound-stride N] [--png out.png] [--digest] mesh.obj ...
 //
 // One markdown row per (mesh, resolution) in the layout of the paper's Table 1: stage times
 // (voxelization + lists, octree, type-1, type-2, type-3, hanging/finish; seconds, best of
@@ -12,6 +12,10 @@
 // box) against the exact reference, next to the stated bound. The resolution is the number of
 // finest voxels along the longest side of the mesh's bounding box, as in the paper.
 // --subdivide N: Loop subdivision (OpenMesh LoopT; N levels, each ×4 faces) first.
+// stderr also gives the least CPU time (user + system, all threads) of the repeats, a figure
+// that other load on the machine disturbs far less than the wall time.
+// --digest: a hash of every value of the (best) ADF tree, to check that builder changes keep
+// the output bit-identical.
 // --png: a Figure 9-style picture of the last (mesh, resolution): the slice at minimum z of the
 // mesh box and the slice at middle z, distance colour-coded blue → green → red (negative →
 // positive, square-root scale), the zero level black, reconstruction cells of size ≥ 2
@@ -24,6 +28,8 @@
 #include <openvdb/openvdb.h>
 
 #include <tbb/global_control.h>
+
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -129,6 +135,35 @@ void slicePicture(const AdaptiveDistanceField& adf, const BBoxd& meshBox, const 
     std::printf("wrote %s (%d x %d: z = %.4g (min z) | z = %.4g (middle))\n", path.c_str(), 2 * W + gap, H, zs[0], zs[1]);
 }
 
+/// FNV-1a over every value of the ADF tree (voxels and tiles, with their coordinates, levels and
+/// active states): equal digests = bit-identical trees (--digest; used to check that
+/// optimisations of the builder do not change its output).
+uint64_t treeDigest(const openvdb::FloatTree& tree)
+{
+    uint64_t h = 1469598103934665603ull;
+    auto mix = [&h](const void* p, size_t n) {
+        const unsigned char* c = static_cast<const unsigned char*>(p);
+        for (size_t i = 0; i < n; ++i) { h ^= c[i]; h *= 1099511628211ull; }
+    };
+    for (auto it = tree.cbeginValueAll(); it; ++it) {
+        const openvdb::Coord c = it.getCoord();
+        const float v = *it;
+        const int meta[5] = {c.x(), c.y(), c.z(), int(it.getDepth()), int(it.isValueOn())};
+        mix(meta, sizeof(meta));
+        mix(&v, sizeof(v));
+    }
+    return h;
+}
+
+/// CPU seconds (user + system, all threads) of this process so far: the build's CPU time is
+/// robust against other load on the machine, unlike its wall time.
+double cpuSeconds()
+{
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
 std::string fmtBytes(double b)
 {
     char buf[64];
@@ -142,7 +177,7 @@ int main(int argc, char** argv)
 {
     std::vector<double> res = {128, 256, 512};
     int subdivide = 0, threads = 0, repeat = 1, errors = 20000, boundStride = 1;
-    bool bounds = true;
+    bool bounds = true, digest = false;
     std::string png;
     std::vector<std::string> meshes;
     for (int i = 1; i < argc; ++i) {
@@ -159,9 +194,10 @@ int main(int argc, char** argv)
         else if (a == "--no-bounds") bounds = false;
         else if (a == "--bound-stride") boundStride = std::max(1, std::atoi(next()));
         else if (a == "--png") png = next();
+        else if (a == "--digest") digest = true;
         else if (a == "-h" || a == "--help") {
             std::printf("usage: levelforge_bench_adf [--res 128,256,512] [--subdivide N] [--threads N] [--repeat N] "
-                        "[--errors N] [--no-bounds] [--bound-stride N] [--png out.png] mesh ...\n");
+                        "[--errors N] [--no-bounds] [--bound-stride N] [--png out.png] [--digest] mesh ...\n");
             return 0;
         } else meshes.push_back(a);
     }
@@ -192,14 +228,20 @@ int main(int argc, char** argv)
                 opt.computeBounds = false;
                 AdaptiveDistanceFieldStats best;
                 AdaptiveDistanceField adf;
-                double bestTotal = 1e300;
+                double bestTotal = 1e300, bestCpu = 1e300;
                 for (int k = 0; k < repeat; ++k) {
                     AdaptiveDistanceFieldStats st;
+                    const double c0 = cpuSeconds();
                     const auto t0 = std::chrono::steady_clock::now();
                     AdaptiveDistanceField a = meshToAdaptiveDistanceField(mesh, opt, &st);
                     const double wall = levelforge_bench::since(t0);
+                    bestCpu = std::min(bestCpu, cpuSeconds() - c0);
                     if (wall < bestTotal) { bestTotal = wall; best = st; adf = a; }
                 }
+                if (digest)
+                    std::fprintf(stderr, "%s %d: digest %016llx, samples %llu / %llu / %llu, hanging %llu\n", name.c_str(), int(r),
+                                 (unsigned long long)treeDigest(adf.grid()->tree()), (unsigned long long)best.type1,
+                                 (unsigned long long)best.type2, (unsigned long long)best.type3, (unsigned long long)best.hanging);
                 // the stated bound (a separate pass, timed separately)
                 AdaptiveDistanceFieldStats bst = best;
                 if (bounds) {
@@ -268,7 +310,7 @@ int main(int argc, char** argv)
                     row.error = buf;
                 }
                 rows.push_back(row);
-                std::fprintf(stderr, "%s %d: %.3f s, %s, type-2 beyond the gather radius %llu, type-2 certificate <= %.3f voxels\n", name.c_str(), int(r), bestTotal,
+                std::fprintf(stderr, "%s %d: %.3f s (CPU %.3f s, least of %d), %s, type-2 beyond the gather radius %llu, type-2 certificate <= %.3f voxels\n", name.c_str(), int(r), bestTotal, bestCpu, repeat,
                              fmtBytes(double(best.memoryBytes)).c_str(), (unsigned long long)best.type2Wide, best.type2MaxBoundVoxels);
                 if (!png.empty() && &path == &meshes.back() && r == res.back()) slicePicture(adf, mesh.bounds(), png);
             }

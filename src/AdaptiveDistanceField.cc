@@ -19,6 +19,7 @@
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <atomic>
@@ -280,12 +281,50 @@ FloatTree::Ptr createTree(const Layout& layout, float background)
 
 namespace {
 
-struct Hanging
+/// A constrained leaf voxel: its offset and the coarsest touching cell (size, origin relative to
+/// the leaf origin: within [-128, 7] on each axis).
+struct HangItem
 {
-    float* leafValue;    // non-null: a leaf voxel
-    const float* leafBuf;// the leaf's buffer
-    Coord p;             // lattice point
-    CellInfo cell;       // the coarsest touching cell, whose trilinear value p takes
+    uint16_t off;
+    uint8_t size;
+    int8_t dx, dy, dz;
+};
+constexpr int kHangSizes[4] = {128, 8, 4, 2}; // resolution order: coarsest cells first
+
+/// Cell sizes inside a leaf from its refined-cell mask (as cellInLeaf, by bit operations):
+/// bit q of sub4 / sub2 tells whether 4³ block q / 2³ block q holds an active voxel.
+struct LeafCellSizes
+{
+    uint8_t sub4 = 0;
+    uint64_t sub2 = 0;
+    explicit LeafCellSizes(const LeafMask& m)
+    {
+        for (int bx = 0; bx < 4; ++bx) {
+            const uint64_t w = m.template getWord<uint64_t>(openvdb::Index(2 * bx)) | m.template getWord<uint64_t>(openvdb::Index(2 * bx + 1));
+            if (!w) continue;
+            for (int by = 0; by < 4; ++by)
+                for (int bz = 0; bz < 4; ++bz)
+                    if ((w >> (16 * by + 2 * bz)) & 0x303u) {
+                        sub2 |= uint64_t(1) << ((bx << 4) | (by << 2) | bz);
+                        sub4 |= uint8_t(1u << (((bx >> 1) << 2) | ((by >> 1) << 1) | (bz >> 1)));
+                    }
+        }
+    }
+    /// Size of the cell holding local unit cell (x, y, z), x, y, z in [0, 8).
+    int size(int x, int y, int z) const
+    {
+        if (!((sub4 >> (((x >> 2) << 2) | ((y >> 2) << 1) | (z >> 2))) & 1)) return 4;
+        if (!((sub2 >> (((x >> 1) << 4) | ((y >> 1) << 2) | (z >> 1))) & 1)) return 2;
+        return 1;
+    }
+    /// Cells of sizes 1, 2 and 4 in the leaf.
+    void count(uint64_t& n1, uint64_t& n2, uint64_t& n4) const
+    {
+        const int s4 = __builtin_popcount(sub4), s2 = __builtin_popcountll(sub2);
+        n4 += uint64_t(8 - s4);
+        n2 += uint64_t(8 * s4 - s2);
+        n1 += uint64_t(8 * s2);
+    }
 };
 
 /// The coarsest in-domain cell touching lattice point p (size 0 when none).
@@ -323,15 +362,19 @@ PipelineResult fillValues(FloatTree& tree, const Layout& layout, SampleProvider&
 
     // ---- leaves: classification (free / hanging), then the provider's free samples
     const auto t0 = Clock::now();
-    std::vector<std::vector<Hanging>> hangLeaf(nLeaves);
+    // constrained voxels per leaf, grouped by the size of their cell (kHangSizes order)
+    std::vector<std::vector<HangItem>> hangLeaf(nLeaves);
+    std::vector<std::array<uint32_t, 5>> hangBegin(nLeaves);
     std::atomic<bool> stop{false};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, nLeaves, 4), [&](const tbb::blocked_range<size_t>& range) {
         if (stop) return;
         Reconstruction rec(tree, dom);
         uint8_t isFree[512];
+        HangItem hang[4][512];
         for (size_t i = range.begin(); i != range.end(); ++i) {
             FloatLeaf* leaf = leaves[i];
             const Coord o = leaf->origin();
+            const LeafCellSizes own(leaf->getValueMask());
             // cell sizes of the 9³ unit cells [o-1, o+7]
             CellInfo cells[729];
             for (int x = 0; x < 9; ++x)
@@ -339,10 +382,14 @@ PipelineResult fillValues(FloatTree& tree, const Layout& layout, SampleProvider&
                     for (int z = 0; z < 9; ++z) {
                         const Coord c = o + Coord(x - 1, y - 1, z - 1);
                         CellInfo& X = cells[(x * 9 + y) * 9 + z];
-                        if (x > 0 && y > 0 && z > 0) X = cellInLeaf(*leaf, c); // own block: no probe
-                        else X = inDomainCell(dom, c) ? rec.cellAt(c) : CellInfo{};
+                        if (x > 0 && y > 0 && z > 0) { // own block: from the mask
+                            const int sz = own.size(x - 1, y - 1, z - 1);
+                            X = {sz, Coord(c.x() & ~(sz - 1), c.y() & ~(sz - 1), c.z() & ~(sz - 1))};
+                        } else {
+                            X = inDomainCell(dom, c) ? rec.cellAt(c) : CellInfo{};
+                        }
                     }
-            float* buf = leaf->buffer().data();
+            int nHang[4] = {0, 0, 0, 0};
             for (int x = 0; x < 8; ++x)
                 for (int y = 0; y < 8; ++y)
                     for (int z = 0; z < 8; ++z) {
@@ -354,9 +401,21 @@ PipelineResult fillValues(FloatTree& tree, const Layout& layout, SampleProvider&
                         }
                         const Coord p = o + Coord(x, y, z);
                         isFree[off] = S.size > 0 && isCornerOf(S, p);
-                        if (!isFree[off]) hangLeaf[i].push_back({buf + off, buf, p, S});
+                        if (isFree[off] || S.size == 0) continue;
+                        // S.size is 2, 4, 8 or 128 here (a size-1 cell has every touching point as corner)
+                        const int cls = S.size == 128 ? 0 : S.size == 8 ? 1 : S.size == 4 ? 2 : 3;
+                        hang[cls][nHang[cls]++] = {uint16_t(off), uint8_t(S.size), int8_t(S.origin.x() - o.x()),
+                                                   int8_t(S.origin.y() - o.y()), int8_t(S.origin.z() - o.z())};
                     }
-            provider.leafSamples(i, *leaf, isFree, buf);
+            std::vector<HangItem>& hl = hangLeaf[i];
+            hl.clear();
+            hl.reserve(size_t(nHang[0] + nHang[1] + nHang[2] + nHang[3]));
+            for (int k = 0; k < 4; ++k) {
+                hangBegin[i][size_t(k)] = uint32_t(hl.size());
+                hl.insert(hl.end(), hang[k], hang[k] + nHang[k]);
+            }
+            hangBegin[i][4] = uint32_t(hl.size());
+            provider.leafSamples(i, *leaf, isFree, leaf->buffer().data());
         }
         if (interrupter && interrupter->wasInterrupted()) stop = true;
     });
@@ -399,21 +458,22 @@ PipelineResult fillValues(FloatTree& tree, const Layout& layout, SampleProvider&
 
     // ---- hanging points, coarsest cells first (their corners are final by then)
     const auto t2 = Clock::now();
-    for (int size : {128, 8, 4, 2}) {
+    for (int cls = 0; cls < 4; ++cls) {
+        const int size = kHangSizes[cls];
         std::vector<size_t> tileIdx;
         for (size_t i = 0; i < tiles.size(); ++i)
             if (tileKind[i] == 2 && tileHang[i].size == size) tileIdx.push_back(i);
-        std::vector<const Hanging*> items;
-        for (const auto& v : hangLeaf)
-            for (const Hanging& h : v)
-                if (h.cell.size == size) items.push_back(&h);
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, items.size() + tileIdx.size(), 1024),
-                          [&](const tbb::blocked_range<size_t>& range) {
-            Reconstruction rec(tree, dom);
+        // every value of this round is the trilinear value of a cell whose corners are final
+        // (free, or constrained by a coarser cell in an earlier round): any order gives the same
+        struct Cache
+        {
+            explicit Cache(Reconstruction r) : rec(r) {}
+            Reconstruction rec;
             CellInfo lastS{0, Coord(0)};
-            double lastV[8];
+            double lastV[8] = {0, 0, 0, 0, 0, 0, 0, 0};
             // the trilinear value of cell S at p, reusing the corner values of the previous cell
-            auto interpCached = [&](const CellInfo& S, const Coord& p) {
+            double interp(const CellInfo& S, const Coord& p)
+            {
                 if (S.size != lastS.size || S.origin != lastS.origin) {
                     for (int c = 0; c < 8; ++c)
                         lastV[c] = rec.value(S.origin + Coord(((c >> 2) & 1) * S.size, ((c >> 1) & 1) * S.size, (c & 1) * S.size));
@@ -422,33 +482,45 @@ PipelineResult fillValues(FloatTree& tree, const Layout& layout, SampleProvider&
                 const Vec3d t(double(p.x() - S.origin.x()) / S.size, double(p.y() - S.origin.y()) / S.size,
                               double(p.z() - S.origin.z()) / S.size);
                 return Reconstruction::trilinear(lastV, t, nullptr);
-            };
-            for (size_t k = range.begin(); k != range.end(); ++k) {
-                if (k < items.size()) {
-                    const Hanging& h = *items[k];
-                    const Coord lo = h.cell.origin - (h.p & ~7); // cell origin local to the point's leaf
-                    if (h.cell.size <= 4 && lo.x() >= 0 && lo.y() >= 0 && lo.z() >= 0 && lo.x() + h.cell.size <= 7 &&
-                        lo.y() + h.cell.size <= 7 && lo.z() + h.cell.size <= 7) {
+            }
+        };
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, nLeaves, 16), [&](const tbb::blocked_range<size_t>& range) {
+            Cache cache(Reconstruction(tree, dom));
+            for (size_t i = range.begin(); i != range.end(); ++i) {
+                const std::vector<HangItem>& hl = hangLeaf[i];
+                const uint32_t b = hangBegin[i][size_t(cls)], e = hangBegin[i][size_t(cls) + 1];
+                if (b == e) continue;
+                float* buf = leaves[i]->buffer().data();
+                const Coord o = leaves[i]->origin();
+                for (uint32_t k = b; k < e; ++k) {
+                    const HangItem& h = hl[k];
+                    const int sz = h.size;
+                    const int px = h.off >> 6, py = (h.off >> 3) & 7, pz = h.off & 7;
+                    if (sz <= 4 && h.dx >= 0 && h.dy >= 0 && h.dz >= 0 && h.dx + sz <= 7 && h.dy + sz <= 7 && h.dz + sz <= 7) {
                         // all corners in the same leaf: read the buffer
-                        const int sz = h.cell.size;
                         double v[8];
                         for (int c = 0; c < 8; ++c)
-                            v[c] = h.leafBuf[((lo.x() + ((c >> 2) & 1) * sz) << 6) | ((lo.y() + ((c >> 1) & 1) * sz) << 3) |
-                                             (lo.z() + (c & 1) * sz)];
-                        const Vec3d t(double(h.p.x() - h.cell.origin.x()) / sz, double(h.p.y() - h.cell.origin.y()) / sz,
-                                      double(h.p.z() - h.cell.origin.z()) / sz);
-                        *h.leafValue = float(Reconstruction::trilinear(v, t, nullptr));
+                            v[c] = buf[((h.dx + ((c >> 2) & 1) * sz) << 6) | ((h.dy + ((c >> 1) & 1) * sz) << 3) | (h.dz + (c & 1) * sz)];
+                        const Vec3d t(double(px - h.dx) / sz, double(py - h.dy) / sz, double(pz - h.dz) / sz);
+                        buf[h.off] = float(Reconstruction::trilinear(v, t, nullptr));
                         continue;
                     }
-                    *h.leafValue = float(interpCached(h.cell, h.p));
-                } else {
-                    const size_t i = tileIdx[k - items.size()];
-                    tileValue[i] = float(interpCached(tileHang[i], tiles[i].p));
+                    const CellInfo S{sz, o + Coord(h.dx, h.dy, h.dz)};
+                    buf[h.off] = float(cache.interp(S, o + Coord(px, py, pz)));
                 }
             }
         });
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, tileIdx.size(), 1024), [&](const tbb::blocked_range<size_t>& range) {
+            Cache cache(Reconstruction(tree, dom));
+            for (size_t k = range.begin(); k != range.end(); ++k) {
+                const size_t i = tileIdx[k];
+                tileValue[i] = float(cache.interp(tileHang[i], tiles[i].p));
+            }
+        });
         for (size_t i : tileIdx) tree.addTile(openvdb::Index(tiles[i].level), tiles[i].p, tileValue[i], false);
-        res.hanging += items.size() + tileIdx.size();
+        uint64_t n = tileIdx.size();
+        for (size_t i = 0; i < nLeaves; ++i) n += hangBegin[i][size_t(cls) + 1] - hangBegin[i][size_t(cls)];
+        res.hanging += n;
     }
     for (size_t i = 0; i < tiles.size(); ++i) {
         if (tileKind[i] == 0) continue;
@@ -622,7 +694,179 @@ private:
     std::vector<Node> mNodes;
 };
 
-struct PreparedTri { Vec3d a, b, c, lo, hi; uint32_t id; };
+/// Exact squared distances from the points of the 8-spaced lattice of the domain to the nearest
+/// boundary-cell centre: the type-3 rule at the tile corners, for all of them at once. A
+/// separable exact Euclidean distance transform (lower envelopes of parabolas, Felzenszwalb &
+/// Huttenlocher) over the list tree's cells, evaluated only at the lattice: columns along z,
+/// then y, then x. All in doubled integer coordinates (centre c + 1/2 -> 2c + 1, lattice point
+/// p -> 2p; D = 4·d²), with exact rational comparisons, so each value equals the minimum the
+/// BVH finds (a half-integer sum of squares, exact in double) bit for bit.
+class LatticeEdt
+{
+public:
+    static constexpr int kStep = 8;
+
+    /// False (nothing built; use the BVH) for empty trees, huge coordinates or huge lattices.
+    bool build(const openvdb::UInt32Tree& tree, const CoordBBox& domain)
+    {
+        mD.clear();
+        mLo = domain.min();
+        std::vector<const ListLeaf*> leaves;
+        for (auto it = tree.cbeginLeaf(); it; ++it)
+            if (!it->isEmpty()) leaves.push_back(&*it);
+        if (leaves.empty()) return false;
+        std::sort(leaves.begin(), leaves.end(), [](const ListLeaf* a, const ListLeaf* b) { return a->origin() < b->origin(); });
+        CoordBBox sb;
+        for (const ListLeaf* l : leaves) { sb.expand(l->origin()); sb.expand(l->origin().offsetBy(7)); }
+        const int64_t lim = int64_t(1) << 20;
+        for (int k = 0; k < 3; ++k) {
+            if (std::abs(int64_t(sb.min()[k])) >= lim || std::abs(int64_t(sb.max()[k])) >= lim) return false;
+            if (std::abs(int64_t(domain.min()[k])) >= lim || std::abs(int64_t(domain.max()[k])) >= lim) return false;
+            if (domain.max()[k] < domain.min()[k]) return false;
+            mN[k] = (domain.max()[k] - domain.min()[k]) / kStep + 1;
+        }
+        const int sx0 = sb.min().x(), nxs = sb.max().x() - sx0 + 1;
+        const int nx = mN[0], ny = mN[1], nz = mN[2];
+        if (double(nx) * ny * nz > double(1 << 24) || double(nxs) * ny * nz > double(1 << 24)) return false;
+
+        // pass 1 (z) and 2 (y), per site column x: g2[(j*nz + k)*nxs + x - sx0]
+        const int64_t kInf = std::numeric_limits<int64_t>::max();
+        std::vector<int64_t> g2(size_t(nxs) * ny * nz, kInf);
+        std::vector<uint8_t> hasX(size_t(nxs), 0);
+        tbb::parallel_for(tbb::blocked_range<int>(0, nxs, 4), [&](const tbb::blocked_range<int>& r) {
+            std::vector<int64_t> Y, g1, Z, F, out(static_cast<size_t>(ny));
+            Envelope env;
+            for (int xi = r.begin(); xi != r.end(); ++xi) {
+                const int x = sx0 + xi, ox = x & ~7, lx = x - ox;
+                auto lo = std::lower_bound(leaves.begin(), leaves.end(), ox, [](const ListLeaf* l, int v) { return l->origin().x() < v; });
+                auto hi = std::lower_bound(lo, leaves.end(), ox + 8, [](const ListLeaf* l, int v) { return l->origin().x() < v; });
+                Y.clear();
+                g1.clear();
+                for (auto g = lo; g != hi;) {
+                    auto ge = g;
+                    while (ge != hi && (*ge)->origin().y() == (*g)->origin().y()) ++ge;
+                    const int oy = (*g)->origin().y();
+                    for (int ly = 0; ly < 8; ++ly) {
+                        Z.clear();
+                        for (auto it = g; it != ge; ++it) {
+                            uint32_t bits = uint32_t(((*it)->getValueMask().template getWord<uint64_t>(openvdb::Index(lx)) >> (8 * ly)) & 0xffu);
+                            while (bits) {
+                                Z.push_back(2 * int64_t((*it)->origin().z() + __builtin_ctz(bits)) + 1);
+                                bits &= bits - 1;
+                            }
+                        }
+                        if (Z.empty()) continue;
+                        Y.push_back(2 * int64_t(oy + ly) + 1);
+                        size_t i = 0;
+                        for (int k = 0; k < nz; ++k) {
+                            const int64_t t = 2 * (int64_t(mLo.z()) + int64_t(k) * kStep);
+                            while (i + 1 < Z.size() && Z[i + 1] <= t) ++i;
+                            int64_t best = (t - Z[i]) * (t - Z[i]);
+                            if (i + 1 < Z.size()) best = std::min(best, (Z[i + 1] - t) * (Z[i + 1] - t));
+                            g1.push_back(best);
+                        }
+                    }
+                    g = ge;
+                }
+                if (Y.empty()) continue;
+                hasX[size_t(xi)] = 1;
+                F.resize(Y.size());
+                for (int k = 0; k < nz; ++k) {
+                    for (size_t i = 0; i < Y.size(); ++i) F[i] = g1[i * size_t(nz) + size_t(k)];
+                    env.run(Y.data(), F.data(), int(Y.size()), 2 * int64_t(mLo.y()), 2 * kStep, ny, out.data());
+                    for (int j = 0; j < ny; ++j) g2[(size_t(j) * nz + size_t(k)) * nxs + size_t(xi)] = out[size_t(j)];
+                }
+            }
+        });
+        // pass 3 (x)
+        std::vector<int64_t> X;
+        std::vector<int> xs;
+        for (int xi = 0; xi < nxs; ++xi)
+            if (hasX[size_t(xi)]) { X.push_back(2 * int64_t(sx0 + xi) + 1); xs.push_back(xi); }
+        mD.assign(size_t(nx) * ny * nz, 0);
+        tbb::parallel_for(tbb::blocked_range<int>(0, ny * nz, 16), [&](const tbb::blocked_range<int>& r) {
+            std::vector<int64_t> F(X.size()), out(static_cast<size_t>(nx));
+            Envelope env;
+            for (int jk = r.begin(); jk != r.end(); ++jk) {
+                const int64_t* row = &g2[size_t(jk) * nxs];
+                for (size_t i = 0; i < xs.size(); ++i) F[i] = row[size_t(xs[i])];
+                env.run(X.data(), F.data(), int(X.size()), 2 * int64_t(mLo.x()), 2 * kStep, nx, out.data());
+                for (int i = 0; i < nx; ++i) mD[size_t(i) * ny * nz + size_t(jk)] = out[size_t(i)];
+            }
+        });
+        return true;
+    }
+
+    /// Squared index-space distance from lattice point p to the nearest boundary-cell centre.
+    bool lookup(const Coord& p, double& d2) const
+    {
+        if (mD.empty()) return false;
+        int idx[3];
+        for (int k = 0; k < 3; ++k) {
+            const int64_t o = int64_t(p[k]) - mLo[k];
+            if (o < 0 || o % kStep || o / kStep >= mN[k]) return false;
+            idx[k] = int(o / kStep);
+        }
+        d2 = double(mD[(size_t(idx[0]) * mN[1] + size_t(idx[1])) * mN[2] + size_t(idx[2])]) * 0.25;
+        return true;
+    }
+
+private:
+    using ListLeaf = openvdb::UInt32Tree::LeafNodeType;
+
+    /// Lower envelope of the parabolas (t - Y[i])² + F[i] (Y strictly increasing), evaluated at
+    /// t = t0 + j·dt, j < nq. Breakpoints are the rationals num/den (den > 0), compared exactly.
+    struct Envelope
+    {
+        std::vector<int> v;
+        std::vector<int64_t> zn, zd;
+        void run(const int64_t* Y, const int64_t* F, int n, int64_t t0, int64_t dt, int nq, int64_t* out)
+        {
+            v.resize(size_t(n));
+            zn.resize(size_t(n) + 1);
+            zd.resize(size_t(n) + 1);
+            int k = 0;
+            v[0] = 0;
+            for (int q = 1; q < n; ++q) {
+                int64_t sn, sd;
+                for (;;) {
+                    const int a = v[size_t(k)];
+                    sn = (F[q] + Y[q] * Y[q]) - (F[a] + Y[a] * Y[a]);
+                    sd = 2 * (Y[q] - Y[a]);
+                    // pop while s <= z[k] (z[0] = -inf)
+                    if (k > 0 && __int128(sn) * zd[size_t(k)] <= __int128(zn[size_t(k)]) * sd) { --k; continue; }
+                    break;
+                }
+                ++k;
+                v[size_t(k)] = q;
+                zn[size_t(k)] = sn;
+                zd[size_t(k)] = sd;
+            }
+            int c = 0;
+            for (int j = 0; j < nq; ++j) {
+                const int64_t t = t0 + int64_t(j) * dt;
+                // advance while the next breakpoint z[c+1] < t
+                while (c < k && __int128(zn[size_t(c) + 1]) < __int128(t) * zd[size_t(c) + 1]) ++c;
+                const int a = v[size_t(c)];
+                out[j] = (t - Y[a]) * (t - Y[a]) + F[a];
+            }
+        }
+    };
+
+    Coord mLo{0, 0, 0};
+    int mN[3] = {0, 0, 0};
+    std::vector<int64_t> mD;
+};
+
+/// A gathered triangle: cell-space vertices (double) and its mesh id.
+struct PreparedTri { Vec3d a, b, c; uint32_t id; };
+/// Its bounding box (the first, exact filter of the nearest search).
+struct TriBox { Vec3d lo, hi; };
+/// Lower-bound planes of a gathered triangle, relative to the leaf centre: the unit normal and
+/// the three in-plane outward edge normals (n, -n·a; m_k, -m_k·v_k). For a point p,
+/// dist² >= plane(p)² + max(0, edge_k(p))², exact in the face and edge regions (all zero, i.e.
+/// no bound, for slivers whose normal is not accurate).
+struct TriPlanes { double f[16]; };
 
 /// Cells p + o, o in [-R, R-1+extra]³, sorted by their minimum squared distance from p
 /// (a lattice point, extra = 0) or from any point of the unit cell [p, p+1) (extra = 1).
@@ -630,7 +874,9 @@ struct OffsetTable
 {
     std::vector<Coord> off;
     std::vector<int> d2;
-    OffsetTable(int R, int extra)
+    std::vector<double> d2d;    ///< d2 as double
+    std::vector<int32_t> delta; ///< linear index offset in the gathered region
+    OffsetTable(int R, int extra, int region)
     {
         auto a = [&](int o) { return extra ? (o >= 1 ? o - 1 : (o <= -1 ? -o - 1 : 0)) : (o >= 0 ? o : -o - 1); };
         std::vector<std::pair<int, Coord>> v;
@@ -638,7 +884,12 @@ struct OffsetTable
             for (int y = -R; y <= R - 1 + extra; ++y)
                 for (int z = -R; z <= R - 1 + extra; ++z) v.push_back({a(x) * a(x) + a(y) * a(y) + a(z) * a(z), Coord(x, y, z)});
         std::stable_sort(v.begin(), v.end(), [](const auto& l, const auto& r) { return l.first < r.first; });
-        for (auto& e : v) { d2.push_back(e.first); off.push_back(e.second); }
+        for (auto& e : v) {
+            d2.push_back(e.first);
+            d2d.push_back(double(e.first));
+            off.push_back(e.second);
+            delta.push_back((e.second.x() * region + e.second.y()) * region + e.second.z());
+        }
     }
 };
 
@@ -652,8 +903,15 @@ struct MeshScratch
     std::vector<uint32_t> rangeBegin;    // per marked cell: [begin, end) into cellTris
     std::vector<uint32_t> cellTris;      // local triangle ids
     std::vector<PreparedTri> tris;
-    std::vector<uint32_t> stamp, hashKey, hashVal;
+    std::vector<TriBox> boxes;
+    std::vector<TriPlanes> planes;       // computed on first use (planeReady)
+    std::vector<uint8_t> planeReady;
+    std::vector<uint32_t> stamp;
+    std::vector<uint64_t> hash;          // gather: triangle id << 32 | local id
+    std::vector<std::pair<int, uint32_t>> cells; // gather: (region index, ordinal)
     uint32_t stampValue = 0, lastTri = kNone;
+    Vec3d centre{0.0};                   // leaf centre (the planes' origin)
+    double margin = 0;                   // rounding margin of the plane bounds (cells)
     Vec3d hint{1e300};
     uint64_t type1 = 0, type2 = 0, type3 = 0, type2Wide = 0;
     double type2MaxBound = 0;
@@ -667,7 +925,7 @@ public:
     MeshProvider(const TriangleMesh& mesh, const std::vector<Vec3d>& cellPts, const TriangleListTree& lists,
                  const PseudoNormals& normals, double h)
         : mMesh(mesh), mPts(cellPts), mLists(lists), mNormals(normals), mH(h), mBvh(lists.tree()),
-          mLattice(kGather, 0), mReal(kGather, 1)
+          mLattice(kGather, 0, kRegion), mReal(kGather, 1, kRegion)
     {
     }
 
@@ -677,57 +935,116 @@ public:
         s.rangeBegin.clear();
         s.cellTris.clear();
         s.tris.clear();
+        s.boxes.clear();
         const Coord rmin = o.offsetBy(-kGather), rmax = o.offsetBy(8 + kGather - 1);
         size_t entries = 0;
-        std::vector<std::pair<int, uint32_t>> cells; // (region index, ordinal)
-        cells.reserve(512);
+        auto& cells = s.cells; // (region index, ordinal), in the list leaves' voxel order
+        cells.clear();
         const auto& tree = mLists.tree();
         for (int lx = rmin.x() & ~7; lx <= rmax.x(); lx += 8)
             for (int ly = rmin.y() & ~7; ly <= rmax.y(); ly += 8)
                 for (int lz = rmin.z() & ~7; lz <= rmax.z(); lz += 8) {
                     const auto* leaf = tree.probeConstLeaf(Coord(lx, ly, lz));
                     if (!leaf) continue;
-                    for (auto it = leaf->cbeginValueOn(); it; ++it) {
-                        const Coord c = it.getCoord();
-                        if (c.x() < rmin.x() || c.x() > rmax.x() || c.y() < rmin.y() || c.y() > rmax.y() ||
-                            c.z() < rmin.z() || c.z() > rmax.z())
-                            continue;
-                        const int idx = ((c.x() - rmin.x()) * kRegion + (c.y() - rmin.y())) * kRegion + (c.z() - rmin.z());
-                        cells.push_back({idx, *it});
-                        entries += mLists.listSize(*it);
+                    // the part of the leaf inside the region, by mask words
+                    const int x0 = std::max(rmin.x(), lx) - lx, x1 = std::min(rmax.x(), lx + 7) - lx;
+                    const int y0 = std::max(rmin.y(), ly) - ly, y1 = std::min(rmax.y(), ly + 7) - ly;
+                    const int z0 = std::max(rmin.z(), lz) - lz, z1 = std::min(rmax.z(), lz + 7) - lz;
+                    const uint32_t zmask = (0xffu >> (7 - (z1 - z0))) << z0;
+                    const auto& mask = leaf->getValueMask();
+                    const uint32_t* vals = leaf->buffer().data();
+                    for (int x = x0; x <= x1; ++x) {
+                        const uint64_t w = mask.template getWord<uint64_t>(openvdb::Index(x));
+                        if (!w) continue;
+                        for (int y = y0; y <= y1; ++y) {
+                            uint32_t bits = uint32_t(w >> (8 * y)) & zmask;
+                            while (bits) {
+                                const int z = __builtin_ctz(bits);
+                                bits &= bits - 1;
+                                const uint32_t ord = vals[(x << 6) | (y << 3) | z];
+                                const int idx = ((lx + x - rmin.x()) * kRegion + (ly + y - rmin.y())) * kRegion + (lz + z - rmin.z());
+                                cells.push_back({idx, ord});
+                                entries += mLists.listSize(ord);
+                            }
+                        }
                     }
                 }
+        // open addressing, key and local id packed in one word; sized for the entries (every
+        // distinct triangle is at least one entry), load factor <= 1/2
         size_t hsize = 64;
         while (hsize < 2 * entries) hsize <<= 1;
         const uint32_t hmask = uint32_t(hsize - 1);
-        s.hashKey.assign(hsize, kNone);
-        s.hashVal.resize(hsize);
+        s.hash.assign(hsize, ~uint64_t(0));
+        uint64_t* hash = s.hash.data();
+        s.cellTris.reserve(entries);
         for (const auto& cell : cells) {
             s.cellSlot[size_t(cell.first)] = int32_t(s.rangeBegin.size());
             s.rangeBegin.push_back(uint32_t(s.cellTris.size()));
             for (const uint32_t* t = mLists.listBegin(cell.second); t != mLists.listEnd(cell.second); ++t) {
                 uint32_t h = (*t * 2654435761u) & hmask;
-                while (s.hashKey[h] != kNone && s.hashKey[h] != *t) h = (h + 1) & hmask;
-                if (s.hashKey[h] == kNone) {
-                    s.hashKey[h] = *t;
-                    s.hashVal[h] = uint32_t(s.tris.size());
+                while (hash[h] != ~uint64_t(0) && uint32_t(hash[h] >> 32) != *t) h = (h + 1) & hmask;
+                if (hash[h] == ~uint64_t(0)) {
+                    hash[h] = (uint64_t(*t) << 32) | uint64_t(s.tris.size());
                     const Vec3I& tri = mMesh.triangles[*t];
                     const Vec3d& a = mPts[tri[0]];
                     const Vec3d& b = mPts[tri[1]];
                     const Vec3d& c = mPts[tri[2]];
-                    s.tris.push_back({a, b, c, minComponent(minComponent(a, b), c), maxComponent(maxComponent(a, b), c), *t});
+                    s.tris.push_back({a, b, c, *t});
+                    s.boxes.push_back({minComponent(minComponent(a, b), c), maxComponent(maxComponent(a, b), c)});
                 }
-                s.cellTris.push_back(s.hashVal[h]);
+                s.cellTris.push_back(uint32_t(hash[h]));
             }
         }
         s.rangeBegin.push_back(uint32_t(s.cellTris.size()));
+        s.centre = Vec3d(o.x() + 4.0, o.y() + 4.0, o.z() + 4.0);
         s.stamp.assign(s.tris.size(), 0u);
         s.stampValue = 0;
         s.lastTri = kNone;
+        s.planes.resize(s.tris.size());
+        s.planeReady.assign(s.tris.size(), 0);
+        // the plane bounds and the exact distances round at ~1e-16 of the coordinates (and of
+        // 1/sin of the smallest angle, >= 1e-3 where the bound is used): a margin of 1e-6 cells
+        // per 1000 cells of coordinate magnitude covers both with a wide reserve
+        const double mag = std::max(std::abs(s.centre[0]), std::max(std::abs(s.centre[1]), std::abs(s.centre[2]))) + 64.0;
+        s.margin = 1e-6 * std::max(1.0, mag / 1000.0);
+    }
+
+    /// The lower-bound planes of gathered triangle t (see TriPlanes).
+    static void preparePlanes(MeshScratch& s, uint32_t t)
+    {
+        s.planeReady[t] = 1;
+        double* f = s.planes[t].f;
+        std::fill(f, f + 16, 0.0);
+        const PreparedTri& pt = s.tris[t];
+        const Vec3d v[3] = {pt.a - s.centre, pt.b - s.centre, pt.c - s.centre};
+        const Vec3d e0 = v[1] - v[0], e1 = v[2] - v[0];
+        Vec3d n = e0.cross(e1);
+        const double nl = n.length(), l0 = e0.length(), l1 = e1.length();
+        if (!(nl > 1e-3 * l0 * l1) || !std::isfinite(nl)) return; // sliver (or degenerate): no bound
+        n /= nl;
+        f[0] = n[0]; f[1] = n[1]; f[2] = n[2]; f[3] = -n.dot(v[0]);
+        for (int k = 0; k < 3; ++k) {
+            Vec3d m = (v[(k + 1) % 3] - v[k]).cross(n);
+            const double ml = m.length();
+            if (!(ml > 0.0)) { std::fill(f, f + 16, 0.0); return; }
+            m /= ml;
+            f[4 + 4 * k] = m[0]; f[5 + 4 * k] = m[1]; f[6 + 4 * k] = m[2]; f[7 + 4 * k] = -m.dot(v[k]);
+        }
+    }
+
+    /// (sqrt(d2) + margin)²: a triangle whose plane bound exceeds it cannot come closer than d2.
+    static double boundLimit(double d2, double margin)
+    {
+        if (!(d2 < std::numeric_limits<double>::infinity())) return d2;
+        const double d = std::sqrt(d2) + margin;
+        return d * d;
     }
 
     /// Nearest gathered triangle to q (index space); `base` = the lattice point (local to the
     /// region's corner o-4) the offsets are relative to. Exact when the result is <= kGather.
+    /// Cells are visited nearest-first and each triangle's box is tested at its first visit;
+    /// the plane bound only skips triangles that provably (with a rounding margin) cannot beat
+    /// the current best, so the result, ties included, is that of the plain search.
     Nearest nearest(const Vec3d& q, const Coord& baseLocal, const OffsetTable& table, MeshScratch& s) const
     {
         Nearest best;
@@ -739,25 +1056,50 @@ public:
             best.d2 = best.cp.distanceSqr;
             best.tri = s.lastTri;
         }
+        double limit = boundLimit(best.d2, s.margin);
+        const Vec3d r = q - s.centre;
         const size_t n = table.off.size();
+        const double* td2 = table.d2d.data();
+        const int32_t* delta = table.delta.data();
+        const int32_t* slots = s.cellSlot.data() + ((baseLocal.x() * kRegion + baseLocal.y()) * kRegion + baseLocal.z());
+        const uint32_t* rb = s.rangeBegin.data();
+        uint32_t* stamp = s.stamp.data();
+        const uint32_t sv = s.stampValue;
+        const uint32_t* ct = s.cellTris.data();
         for (size_t k = 0; k < n; ++k) {
-            if (double(table.d2[k]) >= best.d2) break;
-            const Coord r = baseLocal + table.off[k];
-            const int32_t slot = s.cellSlot[size_t((r.x() * kRegion + r.y()) * kRegion + r.z())];
+            if (td2[k] >= best.d2) break;
+            const int32_t slot = slots[delta[k]];
             if (slot < 0) continue;
-            for (uint32_t j = s.rangeBegin[size_t(slot)]; j < s.rangeBegin[size_t(slot) + 1]; ++j) {
-                const uint32_t t = s.cellTris[j];
-                if (s.stamp[t] == s.stampValue) continue;
-                s.stamp[t] = s.stampValue;
+            for (uint32_t j = rb[slot], je = rb[slot + 1]; j < je; ++j) {
+                const uint32_t t = ct[j];
+                if (stamp[t] == sv) continue;
+                stamp[t] = sv;
+                const TriBox& bx = s.boxes[t];
+                if (boxDistanceSqr(q, bx.lo, bx.hi) >= best.d2) continue;
+                if (limit < std::numeric_limits<double>::infinity()) {
+                    if (!s.planeReady[t]) preparePlanes(s, t);
+                    const double* f = s.planes[t].f;
+                    const double pl = f[0] * r[0] + f[1] * r[1] + f[2] * r[2] + f[3];
+                    const double e0 = f[4] * r[0] + f[5] * r[1] + f[6] * r[2] + f[7];
+                    const double e1 = f[8] * r[0] + f[9] * r[1] + f[10] * r[2] + f[11];
+                    const double e2 = f[12] * r[0] + f[13] * r[1] + f[14] * r[2] + f[15];
+                    const double e = std::max(std::max(e0, e1), std::max(e2, 0.0));
+                    if (pl * pl + e * e > limit) continue;
+                }
                 const PreparedTri& pt = s.tris[t];
-                if (boxDistanceSqr(q, pt.lo, pt.hi) >= best.d2) continue;
                 const TriangleClosestPoint cp = closestPointOnTriangle(q, pt.a, pt.b, pt.c);
-                if (cp.distanceSqr < best.d2) { best.d2 = cp.distanceSqr; best.tri = t; best.cp = cp; }
+                if (cp.distanceSqr < best.d2) {
+                    best.d2 = cp.distanceSqr;
+                    best.tri = t;
+                    best.cp = cp;
+                    limit = boundLimit(best.d2, s.margin);
+                }
             }
         }
         s.lastTri = best.tri;
         return best;
     }
+
 
     /// Signed distance (world) from a nearest-triangle result; pseudonormal sign.
     double signedWorld(const Nearest& nb, const Vec3d& q, const MeshScratch& s) const
@@ -839,9 +1181,21 @@ public:
         if (t1) mType1Leaves.local().push_back(t1);
     }
 
+    /// The domain whose 8-spaced lattice the tile samples lie on (set before fillValues).
+    void setDomain(const CoordBBox& domain)
+    {
+        if (mEdtBuilt && domain == mEdtDomain) return;
+        mEdtDomain = domain;
+        mEdtBuilt = false;
+    }
+
     void afterLeaves(FloatTree& adfTree) override
     {
         const auto t0 = Clock::now();
+        if (!mEdtBuilt) {
+            mEdt.build(mLists.tree(), mEdtDomain);
+            mEdtBuilt = true;
+        }
         mType1 = std::make_shared<FloatTree>(1e30f);
         std::vector<FloatLeaf*> all;
         for (auto& v : mType1Leaves) all.insert(all.end(), v.begin(), v.end());
@@ -879,6 +1233,11 @@ public:
     {
         MeshScratch& s = mScratch.local();
         ++s.type3;
+        double d2;
+        if (mEdt.lookup(p, d2)) { // the tile corners: from the lattice transform (same values)
+            const double d = std::sqrt(d2) * mH;
+            return insideAt(p) ? -d : d;
+        }
         return estimate(Vec3d(p.x(), p.y(), p.z()), p, s.hint);
     }
 
@@ -908,6 +1267,9 @@ public:
     double mH;
     CentreBvh mBvh;
     OffsetTable mLattice, mReal;
+    LatticeEdt mEdt;
+    CoordBBox mEdtDomain;
+    bool mEdtBuilt = false;
     tbb::enumerable_thread_specific<MeshScratch> mScratch;
     tbb::enumerable_thread_specific<std::vector<FloatLeaf*>> mType1Leaves;
     tbb::enumerable_thread_specific<std::vector<float*>> mDeferredSign;
@@ -1158,11 +1520,23 @@ AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& mesh, cons
     tbb::parallel_for(tbb::blocked_range<size_t>(0, cellPts.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) cellPts[i] = mesh.points[i] / h;
     });
-    PseudoNormals normals(mesh);
+    // the non-degenerate triangles, by PseudoNormals' own test (a zero or non-finite normal
+    // length), so that the pseudonormals can be built while the lists are
+    std::vector<uint8_t> degenerate(mesh.triangles.size(), 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, degenerate.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t t = r.begin(); t != r.end(); ++t) {
+            const Vec3I& tri = mesh.triangles[t];
+            const Vec3d& a = mesh.points[tri[0]];
+            const Vec3d& b = mesh.points[tri[1]];
+            const Vec3d& c = mesh.points[tri[2]];
+            const double len = (b - a).cross(c - a).length();
+            degenerate[t] = !(len > 0.0) || !std::isfinite(len);
+        }
+    });
     std::vector<uint32_t> use;
     use.reserve(mesh.triangles.size());
     for (uint32_t t = 0; t < mesh.triangles.size(); ++t)
-        if (!normals.isDegenerate(t)) use.push_back(t);
+        if (!degenerate[t]) use.push_back(t);
     if (use.empty()) throw InvalidMeshError((mesh.source.empty() ? std::string("mesh") : mesh.source) + ": every triangle is degenerate");
     stats.triangles = use.size();
     // domain guard before the voxelization (the bounding box decides the domain)
@@ -1179,7 +1553,22 @@ AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& mesh, cons
             throw ResourceLimitError(os.str());
         }
     }
-    TriangleListTree lists = TriangleListTree::build(cellPts, mesh.triangles, use, nullptr, interrupter);
+    // pseudonormals (partly serial) concurrently with the voxelization
+    std::unique_ptr<PseudoNormals> normalsPtr;
+    tbb::task_group normalsTask;
+    normalsTask.run([&] { normalsPtr.reset(new PseudoNormals(mesh)); });
+    std::unique_ptr<TriangleListTree> listsPtr;
+    try {
+        listsPtr.reset(new TriangleListTree(TriangleListTree::build(cellPts, mesh.triangles, use, nullptr, interrupter)));
+    } catch (...) {
+        normalsTask.wait();
+        throw;
+    }
+    normalsTask.wait();
+    const PseudoNormals& normals = *normalsPtr;
+    const TriangleListTree& lists = *listsPtr;
+    for (uint32_t t : use)
+        if (normals.isDegenerate(t)) throw Error("ADF: degeneracy test disagrees with the pseudonormals"); // never happens
     stats.boundaryCells = lists.cellCount();
     stats.secondsVoxelize = secondsSince(t0);
     progress_internal::check(interrupter, 20);
@@ -1226,6 +1615,7 @@ AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& mesh, cons
         tree = createTree(layout, background);
         stats.secondsOctree += secondsSince(t2);
         for (auto& s : provider.mScratch) { s.type1 = s.type2 = s.type3 = s.type2Wide = 0; s.type2MaxBound = 0; }
+        provider.setDomain(layout.domain);
         pr = fillValues(*tree, layout, provider, interrupter);
         progress_internal::check(interrupter, 80);
         if (options.toleranceVoxels <= 0 || iteration >= 8) break;
@@ -1268,17 +1658,8 @@ AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& mesh, cons
     }
     stats.levelBoundVoxels = bound;
     {
-        Reconstruction rec(*tree, layout.domain);
-        for (size_t i = 0; i < layout.leafOrigins.size(); ++i) {
-            const Coord o = layout.leafOrigins[i];
-            for (int x = 0; x < 8; ++x)
-                for (int y = 0; y < 8; ++y)
-                    for (int z = 0; z < 8; ++z) {
-                        const Coord c = o + Coord(x, y, z);
-                        const CellInfo X = rec.cellAt(c);
-                        if (X.origin == c) ++stats.cells[size_t(levelOfSize(X.size))];
-                    }
-        }
+        // cells of sizes 1, 2, 4 inside the leaves, from their masks
+        for (const LeafMask& m : layout.leafMasks) LeafCellSizes(m).count(stats.cells[0], stats.cells[1], stats.cells[2]);
         stats.cells[3] = pr.cells[3];
         stats.cells[4] = pr.cells[4];
     }
