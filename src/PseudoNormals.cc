@@ -2,7 +2,6 @@
 #include <levelforge/PseudoNormals.h>
 
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <cmath>
@@ -46,28 +45,45 @@ PseudoNormals::PseudoNormals(const TriangleMesh& mesh) : mMesh(mesh)
         for (int k = 0; k < 3; ++k) mVertex[mesh.triangles[t][k]] += mFace[t] * angle[3 * t + k];
     }
 
-    // Edge pseudonormals: sum of the normals of all faces sharing the (undirected) edge.
-    struct EdgeRef { uint64_t key; uint32_t slot; };
-    std::vector<EdgeRef> refs;
-    refs.reserve(3 * nt);
+    // Edge pseudonormals: sum of the normals of all faces sharing the (undirected) edge. The
+    // edge slots are bucketed by their smaller vertex (counting sort, O(E)); within a bucket they
+    // stay in slot order, so each sum is taken in ascending slot order, as a global sort by
+    // (edge, slot) would.
+    std::vector<uint32_t> first(nv + 1, 0);
     for (size_t t = 0; t < nt; ++t) {
         if (mFace[t].lengthSqr() == 0.0) continue;
-        for (int k = 0; k < 3; ++k) {
-            uint64_t u = mesh.triangles[t][k], v = mesh.triangles[t][(k + 1) % 3];
-            if (u > v) std::swap(u, v);
-            refs.push_back({(u << 32) | v, uint32_t(3 * t + k)});
+        for (int k = 0; k < 3; ++k)
+            ++first[std::min(mesh.triangles[t][k], mesh.triangles[t][(k + 1) % 3]) + 1];
+    }
+    for (size_t v = 0; v < nv; ++v) first[v + 1] += first[v];
+    struct EdgeRef { uint32_t other, slot; };
+    std::vector<EdgeRef> refs(first[nv]);
+    {
+        std::vector<uint32_t> fill(first.begin(), first.end() - 1);
+        for (size_t t = 0; t < nt; ++t) {
+            if (mFace[t].lengthSqr() == 0.0) continue;
+            for (int k = 0; k < 3; ++k) {
+                uint32_t u = mesh.triangles[t][k], v = mesh.triangles[t][(k + 1) % 3];
+                if (u > v) std::swap(u, v);
+                refs[fill[u]++] = {v, uint32_t(3 * t + k)};
+            }
         }
     }
-    tbb::parallel_sort(refs.begin(), refs.end(), [](const EdgeRef& x, const EdgeRef& y) {
-        return x.key < y.key || (x.key == y.key && x.slot < y.slot);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nv, 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t u = r.begin(); u != r.end(); ++u) {
+            EdgeRef* b = refs.data() + first[u];
+            EdgeRef* e = refs.data() + first[u + 1];
+            // stable by the other vertex: slots of one edge keep their ascending order
+            std::stable_sort(b, e, [](const EdgeRef& x, const EdgeRef& y) { return x.other < y.other; });
+            for (EdgeRef* i = b; i != e;) {
+                EdgeRef* j = i;
+                Vec3d sum(0.0);
+                for (; j != e && j->other == i->other; ++j) sum += mFace[j->slot / 3];
+                for (EdgeRef* k = i; k != j; ++k) mEdge[k->slot] = sum;
+                i = j;
+            }
+        }
     });
-    for (size_t i = 0; i < refs.size();) {
-        size_t j = i;
-        Vec3d sum(0.0);
-        for (; j < refs.size() && refs[j].key == refs[i].key; ++j) sum += mFace[refs[j].slot / 3];
-        for (size_t k = i; k < j; ++k) mEdge[refs[k].slot] = sum;
-        i = j;
-    }
 }
 
 const Vec3d& PseudoNormals::normal(uint32_t tri, TriangleFeature f) const
