@@ -229,7 +229,9 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     mo.exteriorWidth = mo.interiorWidth = float(exact); // symmetric: membership by |d| (signs come later)
     mo.gridName = o.gridName;
     mo.maxVoxels = o.maxVoxels;
+    mo.interrupter = interrupter; // reports its own stage
     LevelSetWithClosestPoints band = meshToLevelSetWithClosestPoints(soup, mo, &stats.exact);
+    if (interrupter) interrupter->start("volume to level set (sparse): signs");
     progress_internal::check(interrupter, 60);
     // Rebuild the tree from the active voxels alone, signed by the inside flags, trimmed to the
     // (possibly asymmetric) exact widths; then a fresh signed flood fill.
@@ -283,7 +285,9 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
         eo.inputExteriorWidth = exactExt;
         eo.inputInteriorWidth = exactInt;
         eo.maxVoxels = o.maxVoxels;
+        eo.interrupter = interrupter; // reports its own stage
         grid = expandLevelSet(*grid, eo);
+        if (interrupter) interrupter->start("volume to level set (sparse): trim");
         // expandLevelSet keeps a coverage margin beyond the widths; the volume path's band is
         // -interior < φ < exterior exactly, as on the dense path.
         const double bgW = o.fillInterior ? std::max(double(grid->background()), o.exteriorWidth * h)

@@ -1149,7 +1149,7 @@ openvdb::FloatGrid::Ptr readVdbScalarGrid(const std::string& path, const ReadVol
     openvdb::FloatGrid::Ptr out;
     switch (local.sourceType) {
     case VolumeValueType::Float32:
-        out = openvdb::gridPtrCast<openvdb::FloatGrid>(chosen)->deepCopy();
+        out = openvdb::gridPtrCast<openvdb::FloatGrid>(chosen); // read for us: nothing to share
         break;
     case VolumeValueType::Float64:
         out = openvdb::FloatGrid::create(std::make_shared<openvdb::FloatTree>(
