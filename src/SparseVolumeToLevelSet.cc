@@ -119,17 +119,32 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     openvdb::MaskTree cells(false);
     const bool bgInside = inside(field.background());
     for (auto it = field.tree().cbeginLeaf(); it; ++it) cells.touchLeaf(it->origin())->setValuesOn();
-    for (auto it = field.tree().cbeginValueAll(); it; ++it) {
-        if (it.isVoxelValue() || inside(*it) == bgInside) continue;
-        openvdb::CoordBBox b;
-        it.getBoundingBox(b);
-        const Coord lo = b.min(), hi = b.max();
-        for (int a = 0; a < 3; ++a)
-            for (int side = 0; side < 2; ++side) {
-                Coord flo = lo, fhi = hi;
-                flo[a] = fhi[a] = side ? hi[a] : lo[a];
-                cells.fill(openvdb::CoordBBox(flo, fhi), true, true);
-            }
+    {
+        // A tile face can hold a crossing only where the region across it differs. Skipped: the
+        // region across is one tile (or background) at least as large as this tile — VDB tiles
+        // are aligned to their size, so it covers the whole face — with the same flag; or, for
+        // an 8³ tile, a leaf (the leaf's marked voxels, dilated below, name those cells).
+        auto acc = field.getConstAccessor();
+        auto regionSize = [](int depth) { return depth <= 0 ? 4096 : depth == 1 ? 128 : depth == 2 ? 8 : 1; };
+        for (auto it = field.tree().cbeginValueAll(); it; ++it) {
+            if (it.isVoxelValue() || inside(*it) == bgInside) continue;
+            openvdb::CoordBBox b;
+            it.getBoundingBox(b);
+            const Coord lo = b.min(), hi = b.max();
+            const int size = b.dim().x();
+            const bool flag = inside(*it);
+            for (int a = 0; a < 3; ++a)
+                for (int side = 0; side < 2; ++side) {
+                    Coord across = lo;
+                    across[a] = side ? hi[a] + 1 : lo[a] - 1;
+                    const int depth = acc.getValueDepth(across);
+                    if (depth < 3 && regionSize(depth) >= size && inside(acc.getValue(across)) == flag) continue;
+                    if (depth == 3 && size == 8) continue;
+                    Coord flo = lo, fhi = hi;
+                    flo[a] = fhi[a] = side ? hi[a] : lo[a];
+                    cells.fill(openvdb::CoordBBox(flo, fhi), true, true);
+                }
+        }
     }
     cells.voxelizeActiveTiles();
     // A cell is named by its minimum corner; a crossing next to a voxel v can start at v - 1.
@@ -272,7 +287,8 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     progress_internal::check(interrupter, 70);
 
     // ---- 3. widen by the sparse VCVDT (closest points and triangles of the exact band)
-    if (widen && (o.exteriorWidth > exactExt || (o.fillInterior || o.interiorWidth > exactInt))) {
+    // (fill interior: the inside beyond the exact band comes from the sparse VCVDT with either method)
+    if (o.fillInterior || (widen && (o.exteriorWidth > exactExt || o.interiorWidth > exactInt))) {
         t0 = Clock::now();
         ExpandLevelSetOptions eo;
         eo.method = ExpansionMethod::Vector;

@@ -125,20 +125,36 @@ TEST(SparseVolumeToLevelSet, Vcvdt8WidensTheExactBandAccurately)
     EXPECT_EQ(d.signErrors, 0u);
     EXPECT_EQ(d.missing, 0u);
     EXPECT_EQ(d.extra, 0u);
-    // Fill interior: every inside voxel active and negative.
-    o.fillInterior = true;
-    const auto filled = sparseVolumeToLevelSet(*grid, o);
-    auto acc = filled->getConstAccessor();
-    uint64_t insideVoxels = 0, activeInside = 0;
-    for (int k = 0; k < 64; ++k)
-        for (int j = 0; j < 64; ++j)
-            for (int i = 0; i < 64; ++i)
-                if (dense(i, j, k) < -1e-3) {
-                    ++insideVoxels;
+    // Fill interior, with either method: every inside voxel active and negative, and the
+    // exterior band as asked.
+    for (VolumeDistanceMethod m : {VolumeDistanceMethod::VCVDT8, VolumeDistanceMethod::Exact}) {
+        VolumeToLevelSetOptions fo = o;
+        fo.method = m;
+        fo.exteriorWidth = 3.0;
+        fo.fillInterior = true;
+        const auto filled = sparseVolumeToLevelSet(*grid, fo);
+        auto acc = filled->getConstAccessor();
+        uint64_t insideVoxels = 0, activeInside = 0, outsideActive = 0, outsideBand = 0;
+        double maxInside = 0;
+        for (int k = 0; k < 64; ++k)
+            for (int j = 0; j < 64; ++j)
+                for (int i = 0; i < 64; ++i) {
+                    const double r = dense(i, j, k);
                     float v;
-                    if (acc.probeValue(Coord(i, j, k), v) && v < 0) ++activeInside;
+                    const bool on = acc.probeValue(Coord(i, j, k), v);
+                    if (r < -1e-3) {
+                        ++insideVoxels;
+                        if (on && v < 0) ++activeInside;
+                        if (on) maxInside = std::max(maxInside, std::abs(double(v) - r));
+                    } else if (r > 1e-3) {
+                        outsideBand += r < 3.0 - 0.05 ? 1 : 0;
+                        outsideActive += (on && v > 0 && v < 3.0f) ? 1 : 0;
+                    }
                 }
-    EXPECT_EQ(activeInside, insideVoxels);
+        EXPECT_EQ(activeInside, insideVoxels) << volumeDistanceMethodName(m);
+        EXPECT_GE(outsideActive, outsideBand) << volumeDistanceMethodName(m);
+        EXPECT_LT(maxInside, 0.1) << volumeDistanceMethodName(m); // exact band + refined VCVDT inside
+    }
 }
 
 TEST(SparseVolumeToLevelSet, NeverAllocatesTheDenseBox)
@@ -180,6 +196,52 @@ TEST(SparseVolumeToLevelSet, NeverAllocatesTheDenseBox)
     EXPECT_GT(near2, 5000u);
     EXPECT_LT(mx, 0.05);
     EXPECT_LT(st.candidateCells, 4'000'000u); // cells near the surfaces only
+}
+
+TEST(SparseVolumeToLevelSet, TilesTouchingTheBackgroundHoldTheSurface)
+{
+    // A fog made of tiles only (a 128³ tile and an 8³ tile, value 1, background 0, iso 0.5): the
+    // surface runs along tile faces with no leaf nearby. Sparse exact must equal the dense
+    // exact path on the same samples.
+    auto g = openvdb::FloatGrid::create(0.0f);
+    g->tree().fill(openvdb::CoordBBox(Coord(0), Coord(127)), 1.0f, true);
+    g->tree().fill(openvdb::CoordBBox(Coord(128, 0, 0), Coord(135, 7, 7)), 1.0f, true);
+    ASSERT_EQ(g->tree().leafCount(), 0u);
+    VolumeToLevelSetOptions o;
+    o.method = VolumeDistanceMethod::Exact;
+    o.subvoxel = true;
+    o.iso = 0.5f;
+    o.exteriorWidth = o.interiorWidth = 2.0;
+    const auto ls = sparseVolumeToLevelSet(*g, o);
+    const Coord lo(-4), dims(144, 136, 136);
+    ScalarVolume f(dims, 0.0f, Vec3d(1.0), Vec3d(lo.x(), lo.y(), lo.z()));
+    auto acc = g->getConstAccessor();
+    for (int k = 0; k < dims.z(); ++k)
+        for (int j = 0; j < dims.y(); ++j)
+            for (int i = 0; i < dims.x(); ++i) f(i, j, k) = acc.getValue(lo + Coord(i, j, k));
+    const ScalarVolume dense = volumeSignedDistance(f, o);
+    auto la = ls->getConstAccessor();
+    uint64_t band = 0, missing = 0, compared = 0;
+    double mx = 0;
+    for (int k = 0; k < dims.z(); ++k)
+        for (int j = 0; j < dims.y(); ++j)
+            for (int i = 0; i < dims.x(); ++i) {
+                const double r = dense(i, j, k);
+                float v;
+                const bool on = la.probeValue(lo + Coord(i, j, k), v);
+                if (std::abs(r) < 2.0 - 1e-4) {
+                    ++band;
+                    if (!on) ++missing;
+                }
+                if (on) {
+                    ++compared;
+                    mx = std::max(mx, std::abs(double(v) - r));
+                }
+            }
+    EXPECT_GT(band, 100000u);
+    EXPECT_EQ(missing, 0u);
+    EXPECT_LE(mx, 1e-4);
+    EXPECT_EQ(compared, ls->activeVoxelCount());
 }
 
 TEST(SparseVolumeToLevelSet, BadInputsGiveClearErrors)

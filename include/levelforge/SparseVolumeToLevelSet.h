@@ -57,7 +57,8 @@ struct SparseVolumeToLevelSetStats
 /// Converts a scalar grid to a level set as described above. Uses from `options`: iso,
 /// insideBelow, method (VCVDT8: exact band of min(1.5, width) voxels then the sparse VCVDT;
 /// Exact: the exact band at the full widths — its cost grows with the triangles within reach of
-/// each voxel, so wide exact bands on finely sampled surfaces are slow), exteriorWidth / interiorWidth (voxels), fillInterior,
+/// each voxel, so wide exact bands on finely sampled surfaces are slow), exteriorWidth / interiorWidth (voxels), fillInterior
+/// (with either method the inside beyond the exact band comes from the sparse VCVDT),
 /// gridName, maxVoxels (limit on the band's voxels), interrupter; `subvoxel` must be true. The
 /// result has the input's transform. Throws InvalidArgumentError (another method, binary
 /// classification, non-uniform or non-linear transform, non-finite values — naming the voxel —,
