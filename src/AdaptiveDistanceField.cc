@@ -22,6 +22,9 @@
 #include <tbb/task_group.h>
 
 #include <algorithm>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -866,7 +869,11 @@ struct TriBox { Vec3d lo, hi; };
 /// the three in-plane outward edge normals (n, -n·a; m_k, -m_k·v_k). For a point p,
 /// dist² >= plane(p)² + max(0, edge_k(p))², exact in the face and edge regions (all zero, i.e.
 /// no bound, for slivers whose normal is not accurate).
-struct TriPlanes { double f[16]; };
+/// Stored in float, transposed (x, y, z, w of the plane and the three edge lines) so that one
+/// SSE step evaluates all four; the float rounding (< 2e-5 cell for |p - centre| < 32) is
+/// covered by kPlaneSlack.
+struct alignas(16) TriPlanes { float x[4], y[4], z[4], w[4]; };
+constexpr double kPlaneSlack = 1e-4; // cells
 
 /// Cells p + o, o in [-R, R-1+extra]³, sorted by their minimum squared distance from p
 /// (a lattice point, extra = 0) or from any point of the unit cell [p, p+1) (extra = 1).
@@ -1013,8 +1020,17 @@ public:
     static void preparePlanes(MeshScratch& s, uint32_t t)
     {
         s.planeReady[t] = 1;
-        double* f = s.planes[t].f;
-        std::fill(f, f + 16, 0.0);
+        TriPlanes& P = s.planes[t];
+        double f[16] = {};
+        auto store = [&]() {
+            for (int row = 0; row < 4; ++row) {
+                P.x[row] = float(f[4 * row]);
+                P.y[row] = float(f[4 * row + 1]);
+                P.z[row] = float(f[4 * row + 2]);
+                P.w[row] = float(f[4 * row + 3]);
+            }
+        };
+        store(); // no bound until the planes are known to be accurate
         const PreparedTri& pt = s.tris[t];
         const Vec3d v[3] = {pt.a - s.centre, pt.b - s.centre, pt.c - s.centre};
         const Vec3d e0 = v[1] - v[0], e1 = v[2] - v[0];
@@ -1026,10 +1042,11 @@ public:
         for (int k = 0; k < 3; ++k) {
             Vec3d m = (v[(k + 1) % 3] - v[k]).cross(n);
             const double ml = m.length();
-            if (!(ml > 0.0)) { std::fill(f, f + 16, 0.0); return; }
+            if (!(ml > 0.0)) return; // P still all zero: no bound
             m /= ml;
             f[4 + 4 * k] = m[0]; f[5 + 4 * k] = m[1]; f[6 + 4 * k] = m[2]; f[7 + 4 * k] = -m.dot(v[k]);
         }
+        store();
     }
 
     /// (sqrt(d2) + margin)²: a triangle whose plane bound exceeds it cannot come closer than d2.
@@ -1058,6 +1075,10 @@ public:
         }
         double limit = boundLimit(best.d2, s.margin);
         const Vec3d r = q - s.centre;
+        const float rf[3] = {float(r[0]), float(r[1]), float(r[2])};
+#if defined(__SSE2__)
+        const __m128 rx4 = _mm_set1_ps(rf[0]), ry4 = _mm_set1_ps(rf[1]), rz4 = _mm_set1_ps(rf[2]);
+#endif
         const size_t n = table.off.size();
         const double* td2 = table.d2d.data();
         const int32_t* delta = table.delta.data();
@@ -1078,12 +1099,17 @@ public:
                 if (boxDistanceSqr(q, bx.lo, bx.hi) >= best.d2) continue;
                 if (limit < std::numeric_limits<double>::infinity()) {
                     if (!s.planeReady[t]) preparePlanes(s, t);
-                    const double* f = s.planes[t].f;
-                    const double pl = f[0] * r[0] + f[1] * r[1] + f[2] * r[2] + f[3];
-                    const double e0 = f[4] * r[0] + f[5] * r[1] + f[6] * r[2] + f[7];
-                    const double e1 = f[8] * r[0] + f[9] * r[1] + f[10] * r[2] + f[11];
-                    const double e2 = f[12] * r[0] + f[13] * r[1] + f[14] * r[2] + f[15];
-                    const double e = std::max(std::max(e0, e1), std::max(e2, 0.0));
+                    const TriPlanes& P = s.planes[t];
+                    float v[4];
+#if defined(__SSE2__)
+                    const __m128 pv = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_load_ps(P.x), rx4), _mm_mul_ps(_mm_load_ps(P.y), ry4)),
+                                                 _mm_add_ps(_mm_mul_ps(_mm_load_ps(P.z), rz4), _mm_load_ps(P.w)));
+                    _mm_storeu_ps(v, pv);
+#else
+                    for (int row = 0; row < 4; ++row) v[row] = P.x[row] * rf[0] + P.y[row] * rf[1] + P.z[row] * rf[2] + P.w[row];
+#endif
+                    const double pl = std::max(std::abs(double(v[0])) - kPlaneSlack, 0.0);
+                    const double e = std::max(double(std::max(std::max(v[1], v[2]), std::max(v[3], 0.0f))) - kPlaneSlack, 0.0);
                     if (pl * pl + e * e > limit) continue;
                 }
                 const PreparedTri& pt = s.tris[t];
