@@ -864,15 +864,19 @@ private:
 /// A gathered triangle: cell-space vertices (double) and its mesh id.
 struct PreparedTri { Vec3d a, b, c; uint32_t id; };
 /// Its bounding box (the first, exact filter of the nearest search).
-struct TriBox { Vec3d lo, hi; };
+/// In float relative to the leaf centre (w = 0), tested with a kPlaneSlack slack per axis.
+struct alignas(16) TriBox { float lo[4], hi[4]; };
 /// Lower-bound planes of a gathered triangle, relative to the leaf centre: the unit normal and
 /// the three in-plane outward edge normals (n, -n·a; m_k, -m_k·v_k). For a point p,
 /// dist² >= plane(p)² + max(0, edge_k(p))², exact in the face and edge regions (all zero, i.e.
 /// no bound, for slivers whose normal is not accurate).
 /// Stored in float, transposed (x, y, z, w of the plane and the three edge lines) so that one
-/// SSE step evaluates all four; the float rounding (< 2e-5 cell for |p - centre| < 32) is
-/// covered by kPlaneSlack.
-struct alignas(16) TriPlanes { float x[4], y[4], z[4], w[4]; };
+/// SSE step evaluates all four. `err` bounds the float rounding of the four values for points
+/// within 32 cells of the leaf centre: 1e-5 + 2e-7 × the largest |w| (coefficients and the sum
+/// round at 6e-8 of their magnitude); the bound is taken as max(0, |plane| - err) and
+/// max(0, edge - err).
+struct alignas(16) TriPlanes { float x[4], y[4], z[4], w[4]; float err = 0.0f; };
+/// Float rounding of the query point and of the box subtraction for boxes near the centre.
 constexpr double kPlaneSlack = 1e-4; // cells
 
 /// Cells p + o, o in [-R, R-1+extra]³, sorted by their minimum squared distance from p
@@ -944,6 +948,7 @@ public:
         s.tris.clear();
         s.boxes.clear();
         const Coord rmin = o.offsetBy(-kGather), rmax = o.offsetBy(8 + kGather - 1);
+        s.centre = Vec3d(o.x() + 4.0, o.y() + 4.0, o.z() + 4.0); // origin of the boxes and planes
         size_t entries = 0;
         auto& cells = s.cells; // (region index, ordinal), in the list leaves' voxel order
         cells.clear();
@@ -997,13 +1002,20 @@ public:
                     const Vec3d& b = mPts[tri[1]];
                     const Vec3d& c = mPts[tri[2]];
                     s.tris.push_back({a, b, c, *t});
-                    s.boxes.push_back({minComponent(minComponent(a, b), c), maxComponent(maxComponent(a, b), c)});
+                    // grown by 2e-7 of its coordinates' magnitude before rounding to float, which
+                    // covers that rounding and the subtraction's (6e-8 each); kPlaneSlack covers
+                    // the query point's
+                    const Vec3d lo = minComponent(minComponent(a, b), c) - s.centre;
+                    const Vec3d hi = maxComponent(maxComponent(a, b), c) - s.centre;
+                    const double g = 2e-7 * std::max({std::abs(lo[0]), std::abs(lo[1]), std::abs(lo[2]),
+                                                      std::abs(hi[0]), std::abs(hi[1]), std::abs(hi[2])});
+                    s.boxes.push_back({{float(lo[0] - g), float(lo[1] - g), float(lo[2] - g), 0.0f},
+                                       {float(hi[0] + g), float(hi[1] + g), float(hi[2] + g), 0.0f}});
                 }
                 s.cellTris.push_back(uint32_t(hash[h]));
             }
         }
         s.rangeBegin.push_back(uint32_t(s.cellTris.size()));
-        s.centre = Vec3d(o.x() + 4.0, o.y() + 4.0, o.z() + 4.0);
         s.stamp.assign(s.tris.size(), 0u);
         s.stampValue = 0;
         s.lastTri = kNone;
@@ -1023,12 +1035,15 @@ public:
         TriPlanes& P = s.planes[t];
         double f[16] = {};
         auto store = [&]() {
+            double wmax = 0.0;
             for (int row = 0; row < 4; ++row) {
                 P.x[row] = float(f[4 * row]);
                 P.y[row] = float(f[4 * row + 1]);
                 P.z[row] = float(f[4 * row + 2]);
                 P.w[row] = float(f[4 * row + 3]);
+                wmax = std::max(wmax, std::abs(f[4 * row + 3]));
             }
+            P.err = float(1e-5 + 2e-7 * wmax);
         };
         store(); // no bound until the planes are known to be accurate
         const PreparedTri& pt = s.tris[t];
@@ -1078,6 +1093,7 @@ public:
         const float rf[3] = {float(r[0]), float(r[1]), float(r[2])};
 #if defined(__SSE2__)
         const __m128 rx4 = _mm_set1_ps(rf[0]), ry4 = _mm_set1_ps(rf[1]), rz4 = _mm_set1_ps(rf[2]);
+        const __m128 r4 = _mm_set_ps(0.0f, rf[2], rf[1], rf[0]), slack4 = _mm_set1_ps(float(kPlaneSlack));
 #endif
         const size_t n = table.off.size();
         const double* td2 = table.d2d.data();
@@ -1095,8 +1111,25 @@ public:
                 const uint32_t t = ct[j];
                 if (stamp[t] == sv) continue;
                 stamp[t] = sv;
-                const TriBox& bx = s.boxes[t];
-                if (boxDistanceSqr(q, bx.lo, bx.hi) >= best.d2) continue;
+                {
+                    // box lower bound in float: per axis max(lo - p, p - hi, 0) less the slack
+                    const TriBox& bx = s.boxes[t];
+#if defined(__SSE2__)
+                    __m128 d = _mm_max_ps(_mm_sub_ps(_mm_load_ps(bx.lo), r4), _mm_sub_ps(r4, _mm_load_ps(bx.hi)));
+                    d = _mm_max_ps(_mm_sub_ps(d, slack4), _mm_setzero_ps());
+                    const __m128 sq = _mm_mul_ps(d, d);
+                    __m128 sum = _mm_add_ps(sq, _mm_movehl_ps(sq, sq));
+                    sum = _mm_add_ss(sum, _mm_shuffle_ps(sum, sum, 1));
+                    const double boxD2 = double(_mm_cvtss_f32(sum));
+#else
+                    double boxD2 = 0;
+                    for (int k = 0; k < 3; ++k) {
+                        const double a = std::max(std::max(double(bx.lo[k] - rf[k]), double(rf[k] - bx.hi[k])) - kPlaneSlack, 0.0);
+                        boxD2 += a * a;
+                    }
+#endif
+                    if (boxD2 * (1.0 - 1e-6) >= best.d2) continue;
+                }
                 if (limit < std::numeric_limits<double>::infinity()) {
                     if (!s.planeReady[t]) preparePlanes(s, t);
                     const TriPlanes& P = s.planes[t];
@@ -1108,8 +1141,9 @@ public:
 #else
                     for (int row = 0; row < 4; ++row) v[row] = P.x[row] * rf[0] + P.y[row] * rf[1] + P.z[row] * rf[2] + P.w[row];
 #endif
-                    const double pl = std::max(std::abs(double(v[0])) - kPlaneSlack, 0.0);
-                    const double e = std::max(double(std::max(std::max(v[1], v[2]), std::max(v[3], 0.0f))) - kPlaneSlack, 0.0);
+                    const double slack = kPlaneSlack + double(P.err);
+                    const double pl = std::max(std::abs(double(v[0])) - slack, 0.0);
+                    const double e = std::max(double(std::max(std::max(v[1], v[2]), std::max(v[3], 0.0f))) - slack, 0.0);
                     if (pl * pl + e * e > limit) continue;
                 }
                 const PreparedTri& pt = s.tris[t];
