@@ -12,6 +12,7 @@
 #include <openvdb/tools/SignedFloodFill.h>
 #include <openvdb/tree/LeafManager.h>
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -73,6 +74,44 @@ void requireFinite(const openvdb::FloatGrid& field)
            << " holds a non-finite value (" << *it << ")";
         throw InvalidArgumentError(os.str());
     }
+}
+
+/// A tree of background `bg` holding, leaf by leaf, the active voxels of `src` for which
+/// value(coord, v) is not NaN, with that value (TBB over the leaves; no flood fill yet).
+template<typename F>
+openvdb::FloatTree::Ptr keptVoxels(const openvdb::FloatTree& src, float bg, const F& value)
+{
+    using Leaf = openvdb::FloatTree::LeafNodeType;
+    openvdb::tree::LeafManager<const openvdb::FloatTree> lm(src);
+    std::vector<std::unique_ptr<Leaf>> leaves(lm.leafCount());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, lm.leafCount(), 16), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            std::unique_ptr<Leaf> dst;
+            for (auto v = lm.leaf(i).cbeginValueOn(); v; ++v) {
+                const float x = value(v.getCoord(), *v);
+                if (std::isnan(x)) continue;
+                if (!dst) dst = std::make_unique<Leaf>(lm.leaf(i).origin(), bg, false);
+                dst->setValueOn(v.pos(), x);
+            }
+            leaves[i] = std::move(dst);
+        }
+    });
+    auto tree = std::make_shared<openvdb::FloatTree>(bg);
+    for (auto& l : leaves)
+        if (l) tree->addLeaf(l.release());
+    return tree;
+}
+
+/// The flood-filled level-set grid of `tree`.
+openvdb::FloatGrid::Ptr levelSetGrid(const openvdb::FloatTree::Ptr& tree, openvdb::math::Transform::Ptr xf,
+                                     const std::string& name)
+{
+    openvdb::tools::signedFloodFill(*tree);
+    auto grid = openvdb::FloatGrid::create(tree);
+    grid->setTransform(xf);
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    grid->setName(name);
+    return grid;
 }
 
 struct KeyHash
@@ -249,40 +288,21 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     if (interrupter) interrupter->start("volume to level set (sparse): signs");
     progress_internal::check(interrupter, 60);
     // Rebuild the tree from the active voxels alone, signed by the inside flags, trimmed to the
-    // (possibly asymmetric) exact widths; then a fresh signed flood fill.
-    const float bgExact = float(std::max(exactExt, exactInt) * h);
-    auto tree = std::make_shared<openvdb::FloatTree>(bgExact);
-    {
-        using Leaf = openvdb::FloatTree::LeafNodeType;
-        openvdb::tree::LeafManager<const openvdb::FloatTree> lm(band.levelSet->tree());
-        std::vector<std::unique_ptr<Leaf>> leaves(lm.leafCount());
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, lm.leafCount(), 16), [&](const tbb::blocked_range<size_t>& r) {
-            auto acc = field.getConstAccessor();
-            for (size_t i = r.begin(); i != r.end(); ++i) {
-                const Leaf& src = lm.leaf(i);
-                std::unique_ptr<Leaf> dst;
-                for (auto v = src.cbeginValueOn(); v; ++v) {
-                    const Coord c = v.getCoord();
-                    const bool in = inside(acc.getValue(c));
-                    const double d = std::abs(double(*v)) / h;
-                    if (!(d < (in ? exactInt : exactExt))) continue;
-                    if (!dst) dst = std::make_unique<Leaf>(src.origin(), bgExact, false);
-                    dst->setValueOn(c, in ? -std::abs(*v) : std::abs(*v));
-                }
-                leaves[i] = std::move(dst);
-            }
-        });
-        for (auto& l : leaves)
-            if (l) tree->addLeaf(l.release());
-    }
-    openvdb::tools::signedFloodFill(*tree);
-    stats.exactVoxels = tree->activeVoxelCount();
-    // Index space × h without the input's translation, like the soup (the expansion's triangle
+    // (possibly asymmetric) exact widths; then a fresh signed flood fill. The grid is in index
+    // space × h without the input's translation, like the soup (the expansion's triangle
     // refinement maps index to world with this transform); the input's transform is set last.
-    openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(tree);
-    grid->setTransform(openvdb::math::Transform::createLinearTransform(h));
-    grid->setGridClass(openvdb::GRID_LEVEL_SET);
-    grid->setName(o.gridName);
+    tbb::enumerable_thread_specific<openvdb::FloatGrid::ConstAccessor> fieldAcc(
+        [&] { return field.getConstAccessor(); });
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    openvdb::FloatGrid::Ptr grid = levelSetGrid(
+        keptVoxels(band.levelSet->tree(), float(std::max(exactExt, exactInt) * h),
+                   [&](const Coord& c, float v) {
+                       const bool in = inside(fieldAcc.local().getValue(c));
+                       const double d = std::abs(double(v)) / h;
+                       return d < (in ? exactInt : exactExt) ? (in ? -std::abs(v) : std::abs(v)) : nan;
+                   }),
+        openvdb::math::Transform::createLinearTransform(h), o.gridName);
+    stats.exactVoxels = grid->activeVoxelCount();
     stats.secondsExact = secondsSince(t0);
     progress_internal::check(interrupter, 70);
 
@@ -308,27 +328,10 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
         // -interior < φ < exterior exactly, as on the dense path.
         const double bgW = o.fillInterior ? std::max(double(grid->background()), o.exteriorWidth * h)
                                           : std::max(o.exteriorWidth, o.interiorWidth) * h;
-        auto trimmed = std::make_shared<openvdb::FloatTree>(float(bgW));
-        {
-            using Leaf = openvdb::FloatTree::LeafNodeType;
-            const float ext = float(o.exteriorWidth * h), in = float(o.interiorWidth * h);
-            openvdb::tree::LeafManager<const openvdb::FloatTree> lm(grid->tree());
-            std::vector<std::unique_ptr<Leaf>> leaves(lm.leafCount());
-            tbb::parallel_for(tbb::blocked_range<size_t>(0, lm.leafCount(), 16), [&](const tbb::blocked_range<size_t>& r) {
-                for (size_t i = r.begin(); i != r.end(); ++i) {
-                    std::unique_ptr<Leaf> dst;
-                    for (auto v = lm.leaf(i).cbeginValueOn(); v; ++v) {
-                        const float x = *v;
-                        if (!(x < ext) || !(o.fillInterior || x > -in)) continue;
-                        if (!dst) dst = std::make_unique<Leaf>(lm.leaf(i).origin(), float(bgW), false);
-                        dst->setValueOn(v.pos(), x);
-                    }
-                    leaves[i] = std::move(dst);
-                }
-            });
-            for (auto& l : leaves)
-                if (l) trimmed->addLeaf(l.release());
-        }
+        const float ext = float(o.exteriorWidth * h), in = float(o.interiorWidth * h);
+        auto trimmed = keptVoxels(grid->tree(), float(bgW), [&](const Coord&, float x) {
+            return (x < ext && (o.fillInterior || x > -in)) ? x : nan;
+        });
         if (o.fillInterior) {
             // Interior tiles the expansion made active stay active (every inside voxel is kept).
             for (auto it = grid->tree().cbeginValueOn(); it; ++it)
@@ -338,12 +341,7 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
                     trimmed->fill(b, *it, true);
                 }
         }
-        openvdb::tools::signedFloodFill(*trimmed);
-        auto out = openvdb::FloatGrid::create(trimmed);
-        out->setTransform(grid->transform().copy());
-        out->setGridClass(openvdb::GRID_LEVEL_SET);
-        out->setName(o.gridName);
-        grid = out;
+        grid = levelSetGrid(trimmed, grid->transform().copy(), o.gridName);
         stats.secondsWiden = secondsSince(t0);
         stats.widened = true;
     }

@@ -1144,6 +1144,8 @@ ScalarVolume readRaw(const std::string& path, const RawVolumeLayout& layout, uin
 
 openvdb::FloatGrid::Ptr readVdbScalarGrid(const std::string& path, const ReadVolumeOptions& options, VolumeInfo* info)
 {
+    if (volumeio_internal::formatFromExtension(path) != volumeio_internal::Format::Vdb)
+        volumeio_internal::throwInvalid(path, "not a .vdb file (only OpenVDB grids can be read without densifying)");
     VolumeInfo local;
     const openvdb::GridBase::Ptr chosen = volumeio_internal::chooseScalarGrid(path, options, local);
     openvdb::FloatGrid::Ptr out;

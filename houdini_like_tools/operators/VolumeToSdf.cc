@@ -14,7 +14,6 @@
 #include <openvdb/openvdb.h>
 
 #include <algorithm>
-#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -124,22 +123,11 @@ void writeVolumeLevelSet(const openvdb::FloatGrid::Ptr& grid, const VolumeToLeve
     writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
 }
 
-bool isVdbPath(const std::string& path)
-{
-    if (path.size() < 4) return false;
-    std::string ext = path.substr(path.size() - 4);
-    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return ext == ".vdb";
-}
-
 /// --sparse: a .vdb grid converted on its own topology (SparseVolumeToLevelSet.h).
 void cookSparse(OperatorArgs& args, const std::string& input, const std::string& output,
                 std::chrono::steady_clock::time_point t0)
 {
     using Clock = std::chrono::steady_clock;
-    if (!isVdbPath(input))
-        throw UsageError("--sparse reads a .vdb grid; '" + input + "' is not a .vdb file (drop --sparse to densify "
-                         "other formats)");
     if (!args.getBool("subvoxel"))
         throw UsageError("--sparse needs --subvoxel (the sparse path builds the sub-voxel shell)");
     ReadVolumeOptions ro;

@@ -146,6 +146,7 @@ ScalarVolume readVdbVolume(const std::string& path, const ReadVolumeOptions& opt
 /// The same grid as readVdbVolume() chooses (same checks and errors), kept sparse: a FloatGrid
 /// sharing nothing with the file (double and integer grids are converted to float), with its
 /// transform, for sparseVolumeToLevelSet() (SparseVolumeToLevelSet.h). No dense box is made.
+/// A path that is not a .vdb file is refused with InvalidVolumeError.
 openvdb::FloatGrid::Ptr readVdbScalarGrid(const std::string& path, const ReadVolumeOptions& options = {},
                                           VolumeInfo* info = nullptr);
 
