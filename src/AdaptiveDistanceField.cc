@@ -300,6 +300,7 @@ struct LeafCellSizes
 {
     uint8_t sub4 = 0;
     uint64_t sub2 = 0;
+    LeafCellSizes() = default;
     explicit LeafCellSizes(const LeafMask& m)
     {
         for (int bx = 0; bx < 4; ++bx) {
@@ -377,19 +378,34 @@ PipelineResult fillValues(FloatTree& tree, const Layout& layout, SampleProvider&
         for (size_t i = range.begin(); i != range.end(); ++i) {
             FloatLeaf* leaf = leaves[i];
             const Coord o = leaf->origin();
-            const LeafCellSizes own(leaf->getValueMask());
-            // cell sizes of the 9³ unit cells [o-1, o+7]
+            // cell sizes of the 9³ unit cells [o-1, o+7]: the own block and the 7 blocks below
+            // it (index bit set = the own block on that axis), each looked up once: a leaf's
+            // sizes come from its mask, otherwise one cell (an 8³ tile or a 128³ cell) covers it
+            // (the same as Reconstruction::cellAt cell by cell)
+            LeafCellSizes blockSizes[8];
+            CellInfo blockCell[8];
+            bool blockIsLeaf[8];
+            for (int b = 0; b < 8; ++b) {
+                const Coord c0 = o + Coord((b & 4) ? 0 : -8, (b & 2) ? 0 : -8, (b & 1) ? 0 : -8);
+                const FloatLeaf* nl = b == 7 ? leaf : tree.probeConstLeaf(c0);
+                blockIsLeaf[b] = nl != nullptr;
+                if (nl) blockSizes[b] = LeafCellSizes(nl->getValueMask());
+                else blockCell[b] = rec.cellAt(c0);
+            }
             CellInfo cells[729];
             for (int x = 0; x < 9; ++x)
                 for (int y = 0; y < 9; ++y)
                     for (int z = 0; z < 9; ++z) {
                         const Coord c = o + Coord(x - 1, y - 1, z - 1);
                         CellInfo& X = cells[(x * 9 + y) * 9 + z];
-                        if (x > 0 && y > 0 && z > 0) { // own block: from the mask
-                            const int sz = own.size(x - 1, y - 1, z - 1);
+                        const int b = (x > 0 ? 4 : 0) | (y > 0 ? 2 : 0) | (z > 0 ? 1 : 0);
+                        if (b != 7 && !inDomainCell(dom, c)) {
+                            X = CellInfo{};
+                        } else if (blockIsLeaf[b]) {
+                            const int sz = blockSizes[b].size(c.x() & 7, c.y() & 7, c.z() & 7);
                             X = {sz, Coord(c.x() & ~(sz - 1), c.y() & ~(sz - 1), c.z() & ~(sz - 1))};
                         } else {
-                            X = inDomainCell(dom, c) ? rec.cellAt(c) : CellInfo{};
+                            X = blockCell[b];
                         }
                     }
             int nHang[4] = {0, 0, 0, 0};
@@ -876,6 +892,12 @@ struct alignas(16) TriBox { float lo[4], hi[4]; };
 /// round at 6e-8 of their magnitude); the bound is taken as max(0, |plane| - err) and
 /// max(0, edge - err).
 struct alignas(16) TriPlanes { float x[4], y[4], z[4], w[4]; float err = 0.0f; };
+/// Four references of a cell's triangle list with their boxes (as TriBox), transposed so that
+/// one SSE step tests four: lanes beyond the list hold an empty box (lo = +1e30, never passes).
+struct alignas(16) RefQuad { float lx[4], ly[4], lz[4], hx[4], hy[4], hz[4]; uint32_t t[4]; };
+constexpr RefQuad kPadQuad{{1e30f, 1e30f, 1e30f, 1e30f}, {1e30f, 1e30f, 1e30f, 1e30f}, {1e30f, 1e30f, 1e30f, 1e30f},
+                           {1e30f, 1e30f, 1e30f, 1e30f}, {1e30f, 1e30f, 1e30f, 1e30f}, {1e30f, 1e30f, 1e30f, 1e30f},
+                           {0u, 0u, 0u, 0u}};
 /// Float rounding of the query point and of the box subtraction for boxes near the centre.
 constexpr double kPlaneSlack = 1e-4; // cells
 
@@ -911,14 +933,15 @@ constexpr int kRegion = 8 + 2 * kGather;
 struct MeshScratch
 {
     std::vector<int32_t> cellSlot;       // region cell -> range index or -1
-    std::vector<uint32_t> rangeBegin;    // per marked cell: [begin, end) into cellTris
-    std::vector<uint32_t> cellTris;      // local triangle ids
+    std::vector<uint32_t> rangeBegin;    // per marked cell: [begin, end) into quads
+    std::vector<RefQuad> quads;          // the cells' lists (local triangle ids and boxes), 4 per quad
     std::vector<PreparedTri> tris;
     std::vector<TriBox> boxes;
     std::vector<TriPlanes> planes;       // computed on first use (planeReady)
     std::vector<uint8_t> planeReady;
     std::vector<uint32_t> stamp;
-    std::vector<uint64_t> hash;          // gather: triangle id << 32 | local id
+    std::vector<uint32_t> hashKey;       // gather: triangle id + 1 (0 = empty)
+    std::vector<uint32_t> hashLocal;     // gather: its local id
     std::vector<std::pair<int, uint32_t>> cells; // gather: (region index, ordinal)
     uint32_t stampValue = 0, lastTri = kNone;
     Vec3d centre{0.0};                   // leaf centre (the planes' origin)
@@ -940,14 +963,17 @@ public:
     {
     }
 
-    void gather(const Coord& o, MeshScratch& s) const
+    /// Gathers the lists of the leaf region [o-4, o+12)³ (the cells the mReal table reaches
+    /// from the leaf's cells); `latticeOnly` leaves out the last layer, which the mLattice table
+    /// never reaches from the leaf's lattice points (their cells end at o+10).
+    void gather(const Coord& o, MeshScratch& s, bool latticeOnly) const
     {
         s.cellSlot.assign(size_t(kRegion) * kRegion * kRegion, -1);
         s.rangeBegin.clear();
-        s.cellTris.clear();
+        s.quads.clear();
         s.tris.clear();
         s.boxes.clear();
-        const Coord rmin = o.offsetBy(-kGather), rmax = o.offsetBy(8 + kGather - 1);
+        const Coord rmin = o.offsetBy(-kGather), rmax = o.offsetBy(8 + kGather - 1 - (latticeOnly ? 1 : 0));
         s.centre = Vec3d(o.x() + 4.0, o.y() + 4.0, o.z() + 4.0); // origin of the boxes and planes
         size_t entries = 0;
         auto& cells = s.cells; // (region index, ordinal), in the list leaves' voxel order
@@ -981,22 +1007,28 @@ public:
                         }
                     }
                 }
-        // open addressing, key and local id packed in one word; sized for the entries (every
-        // distinct triangle is at least one entry), load factor <= 1/2
+        // open addressing on the triangle id + 1 (0 = empty; the keys alone are probed, so
+        // they stay in L1), the local id beside; sized for the entries (every distinct
+        // triangle is at least one entry), load factor <= 1/2
         size_t hsize = 64;
         while (hsize < 2 * entries) hsize <<= 1;
         const uint32_t hmask = uint32_t(hsize - 1);
-        s.hash.assign(hsize, ~uint64_t(0));
-        uint64_t* hash = s.hash.data();
-        s.cellTris.reserve(entries);
+        s.hashKey.assign(hsize, 0u);
+        s.hashLocal.resize(hsize);
+        uint32_t* hkey = s.hashKey.data();
+        uint32_t* hlocal = s.hashLocal.data();
+        s.quads.reserve(entries / 2 + cells.size());
         for (const auto& cell : cells) {
             s.cellSlot[size_t(cell.first)] = int32_t(s.rangeBegin.size());
-            s.rangeBegin.push_back(uint32_t(s.cellTris.size()));
+            s.rangeBegin.push_back(uint32_t(s.quads.size()));
+            int lane = 4;
             for (const uint32_t* t = mLists.listBegin(cell.second); t != mLists.listEnd(cell.second); ++t) {
+                const uint32_t key = *t + 1;
                 uint32_t h = (*t * 2654435761u) & hmask;
-                while (hash[h] != ~uint64_t(0) && uint32_t(hash[h] >> 32) != *t) h = (h + 1) & hmask;
-                if (hash[h] == ~uint64_t(0)) {
-                    hash[h] = (uint64_t(*t) << 32) | uint64_t(s.tris.size());
+                while (hkey[h] != 0u && hkey[h] != key) h = (h + 1) & hmask;
+                if (hkey[h] == 0u) {
+                    hkey[h] = key;
+                    hlocal[h] = uint32_t(s.tris.size());
                     const Vec3I& tri = mMesh.triangles[*t];
                     const Vec3d& a = mPts[tri[0]];
                     const Vec3d& b = mPts[tri[1]];
@@ -1012,10 +1044,20 @@ public:
                     s.boxes.push_back({{float(lo[0] - g), float(lo[1] - g), float(lo[2] - g), 0.0f},
                                        {float(hi[0] + g), float(hi[1] + g), float(hi[2] + g), 0.0f}});
                 }
-                s.cellTris.push_back(uint32_t(hash[h]));
+                const uint32_t local = hlocal[h];
+                if (lane == 4) {
+                    s.quads.push_back(kPadQuad);
+                    lane = 0;
+                }
+                RefQuad& q = s.quads.back();
+                const TriBox& bx = s.boxes[local];
+                q.lx[lane] = bx.lo[0]; q.ly[lane] = bx.lo[1]; q.lz[lane] = bx.lo[2];
+                q.hx[lane] = bx.hi[0]; q.hy[lane] = bx.hi[1]; q.hz[lane] = bx.hi[2];
+                q.t[lane] = local;
+                ++lane;
             }
         }
-        s.rangeBegin.push_back(uint32_t(s.cellTris.size()));
+        s.rangeBegin.push_back(uint32_t(s.quads.size()));
         s.stamp.assign(s.tris.size(), 0u);
         s.stampValue = 0;
         s.lastTri = kNone;
@@ -1074,9 +1116,10 @@ public:
 
     /// Nearest gathered triangle to q (index space); `base` = the lattice point (local to the
     /// region's corner o-4) the offsets are relative to. Exact when the result is <= kGather.
-    /// Cells are visited nearest-first and each triangle's box is tested at its first visit;
-    /// the plane bound only skips triangles that provably (with a rounding margin) cannot beat
-    /// the current best, so the result, ties included, is that of the plain search.
+    /// Cells are visited nearest-first, four references at a time (RefQuad); a triangle is
+    /// stamped when its box first passes (a box that fails keeps failing: the best only
+    /// shrinks); the plane bound only skips triangles that provably (with a rounding margin)
+    /// cannot beat the current best, so the result, ties included, is that of the plain search.
     Nearest nearest(const Vec3d& q, const Coord& baseLocal, const OffsetTable& table, MeshScratch& s) const
     {
         Nearest best;
@@ -1093,7 +1136,7 @@ public:
         const float rf[3] = {float(r[0]), float(r[1]), float(r[2])};
 #if defined(__SSE2__)
         const __m128 rx4 = _mm_set1_ps(rf[0]), ry4 = _mm_set1_ps(rf[1]), rz4 = _mm_set1_ps(rf[2]);
-        const __m128 r4 = _mm_set_ps(0.0f, rf[2], rf[1], rf[0]), slack4 = _mm_set1_ps(float(kPlaneSlack));
+        const __m128 slack4 = _mm_set1_ps(float(kPlaneSlack));
 #endif
         const size_t n = table.off.size();
         const double* td2 = table.d2d.data();
@@ -1102,57 +1145,80 @@ public:
         const uint32_t* rb = s.rangeBegin.data();
         uint32_t* stamp = s.stamp.data();
         const uint32_t sv = s.stampValue;
-        const uint32_t* ct = s.cellTris.data();
+        const RefQuad* quads = s.quads.data();
         for (size_t k = 0; k < n; ++k) {
             if (td2[k] >= best.d2) break;
             const int32_t slot = slots[delta[k]];
             if (slot < 0) continue;
-            for (uint32_t j = rb[slot], je = rb[slot + 1]; j < je; ++j) {
-                const uint32_t t = ct[j];
-                if (stamp[t] == sv) continue;
-                stamp[t] = sv;
+            for (uint32_t qi = rb[slot], qe = rb[slot + 1]; qi < qe; ++qi) {
+                const RefQuad& quad = quads[qi];
+                // box lower bounds of the four references in float: per axis max(lo - p, p - hi,
+                // 0) less the slack, summed as (x² + z²) + y² (the order of the one-box form)
+                unsigned lanes;
+#if defined(__SSE2__)
                 {
-                    // box lower bound in float: per axis max(lo - p, p - hi, 0) less the slack
-                    const TriBox& bx = s.boxes[t];
-#if defined(__SSE2__)
-                    __m128 d = _mm_max_ps(_mm_sub_ps(_mm_load_ps(bx.lo), r4), _mm_sub_ps(r4, _mm_load_ps(bx.hi)));
-                    d = _mm_max_ps(_mm_sub_ps(d, slack4), _mm_setzero_ps());
-                    const __m128 sq = _mm_mul_ps(d, d);
-                    __m128 sum = _mm_add_ps(sq, _mm_movehl_ps(sq, sq));
-                    sum = _mm_add_ss(sum, _mm_shuffle_ps(sum, sum, 1));
-                    const double boxD2 = double(_mm_cvtss_f32(sum));
+                    const __m128 zero = _mm_setzero_ps();
+                    auto axis = [&](const float* lo, const float* hi, __m128 p) {
+                        __m128 d = _mm_max_ps(_mm_sub_ps(_mm_load_ps(lo), p), _mm_sub_ps(p, _mm_load_ps(hi)));
+                        d = _mm_max_ps(_mm_sub_ps(d, slack4), zero);
+                        return _mm_mul_ps(d, d);
+                    };
+                    const __m128 b = _mm_add_ps(_mm_add_ps(axis(quad.lx, quad.hx, rx4), axis(quad.lz, quad.hz, rz4)),
+                                                axis(quad.ly, quad.hy, ry4));
+                    // at least as permissive as the one-box test boxD2 (1 - 1e-6) < best
+                    const float tf = best.d2 < 1e30 ? float(best.d2 * (1.0 + 2e-6)) : std::numeric_limits<float>::infinity();
+                    lanes = unsigned(_mm_movemask_ps(_mm_cmplt_ps(b, _mm_set1_ps(tf))));
+                    if (!lanes) continue;
+                }
 #else
-                    double boxD2 = 0;
-                    for (int k = 0; k < 3; ++k) {
-                        const double a = std::max(std::max(double(bx.lo[k] - rf[k]), double(rf[k] - bx.hi[k])) - kPlaneSlack, 0.0);
-                        boxD2 += a * a;
+                lanes = 0;
+                for (int l = 0; l < 4; ++l) {
+                    const float lo[3] = {quad.lx[l], quad.ly[l], quad.lz[l]}, hi[3] = {quad.hx[l], quad.hy[l], quad.hz[l]};
+                    float sq[3];
+                    for (int a = 0; a < 3; ++a) {
+                        const float d = std::max(std::max(lo[a] - rf[a], rf[a] - hi[a]) - float(kPlaneSlack), 0.0f);
+                        sq[a] = d * d;
                     }
-#endif
-                    if (boxD2 * (1.0 - 1e-6) >= best.d2) continue;
+                    const float b = (sq[0] + sq[2]) + sq[1];
+                    if (b < 1e30f && double(b) * (1.0 - 1e-6) < best.d2) lanes |= 1u << l;
                 }
-                if (limit < std::numeric_limits<double>::infinity()) {
-                    if (!s.planeReady[t]) preparePlanes(s, t);
-                    const TriPlanes& P = s.planes[t];
-                    float v[4];
+#endif
+                // the lanes not yet stamped (a cell lists a triangle once, so the four differ;
+                // padding lanes never pass the box test)
+                lanes &= unsigned(stamp[quad.t[0]] != sv) | unsigned(stamp[quad.t[1]] != sv) << 1 |
+                         unsigned(stamp[quad.t[2]] != sv) << 2 | unsigned(stamp[quad.t[3]] != sv) << 3;
+                while (lanes) {
+                    const int l = __builtin_ctz(lanes);
+                    lanes &= lanes - 1;
+                    // a triangle whose box cannot beat the best is skipped at every visit (the
+                    // best only shrinks), so stamping only the ones that pass is enough; a
+                    // triangle evaluated although it cannot beat the best changes nothing
+                    const uint32_t t = quad.t[l];
+                    stamp[t] = sv;
+                    if (limit < std::numeric_limits<double>::infinity()) {
+                        if (!s.planeReady[t]) preparePlanes(s, t);
+                        const TriPlanes& P = s.planes[t];
+                        float v[4];
 #if defined(__SSE2__)
-                    const __m128 pv = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_load_ps(P.x), rx4), _mm_mul_ps(_mm_load_ps(P.y), ry4)),
-                                                 _mm_add_ps(_mm_mul_ps(_mm_load_ps(P.z), rz4), _mm_load_ps(P.w)));
-                    _mm_storeu_ps(v, pv);
+                        const __m128 pv = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_load_ps(P.x), rx4), _mm_mul_ps(_mm_load_ps(P.y), ry4)),
+                                                     _mm_add_ps(_mm_mul_ps(_mm_load_ps(P.z), rz4), _mm_load_ps(P.w)));
+                        _mm_storeu_ps(v, pv);
 #else
-                    for (int row = 0; row < 4; ++row) v[row] = P.x[row] * rf[0] + P.y[row] * rf[1] + P.z[row] * rf[2] + P.w[row];
+                        for (int row = 0; row < 4; ++row) v[row] = P.x[row] * rf[0] + P.y[row] * rf[1] + P.z[row] * rf[2] + P.w[row];
 #endif
-                    const double slack = kPlaneSlack + double(P.err);
-                    const double pl = std::max(std::abs(double(v[0])) - slack, 0.0);
-                    const double e = std::max(double(std::max(std::max(v[1], v[2]), std::max(v[3], 0.0f))) - slack, 0.0);
-                    if (pl * pl + e * e > limit) continue;
-                }
-                const PreparedTri& pt = s.tris[t];
-                const TriangleClosestPoint cp = closestPointOnTriangle(q, pt.a, pt.b, pt.c);
-                if (cp.distanceSqr < best.d2) {
-                    best.d2 = cp.distanceSqr;
-                    best.tri = t;
-                    best.cp = cp;
-                    limit = boundLimit(best.d2, s.margin);
+                        const double slack = kPlaneSlack + double(P.err);
+                        const double pl = std::max(std::abs(double(v[0])) - slack, 0.0);
+                        const double e = std::max(double(std::max(std::max(v[1], v[2]), std::max(v[3], 0.0f))) - slack, 0.0);
+                        if (pl * pl + e * e > limit) continue;
+                    }
+                    const PreparedTri& pt = s.tris[t];
+                    const TriangleClosestPoint cp = closestPointOnTriangle(q, pt.a, pt.b, pt.c);
+                    if (cp.distanceSqr < best.d2) {
+                        best.d2 = cp.distanceSqr;
+                        best.tri = t;
+                        best.cp = cp;
+                        limit = boundLimit(best.d2, s.margin);
+                    }
                 }
             }
         }
@@ -1205,7 +1271,7 @@ public:
     {
         MeshScratch& s = mScratch.local();
         const Coord o = leaf.origin();
-        gather(o, s);
+        gather(o, s, true);
         FloatLeaf* t1 = nullptr;
         for (int off = 0; off < 512; ++off) {
             if (!isFree[off]) continue;
@@ -1433,7 +1499,7 @@ Bounds checkBounds(const FloatTree& tree, const Layout& layout, MeshProvider& mp
             MeshScratch& s = mp.mScratch.local();
             for (size_t i = r.begin(); i != r.end(); ++i) {
                 const Coord o = layout.leafOrigins[i];
-                mp.gather(o, s);
+                mp.gather(o, s, false);
                 int unitCounter = 0;
                 for (int x = 0; x < 8; ++x)
                     for (int y = 0; y < 8; ++y)
@@ -1550,7 +1616,87 @@ bool isAdaptiveDistanceField(const openvdb::GridBase& grid)
     return bool(grid.getMetadata<openvdb::StringMetadata>(kAdfMetaKey)) && grid.isType<openvdb::FloatGrid>();
 }
 
-AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& mesh, const AdaptiveDistanceFieldOptions& options,
+namespace {
+
+/// 3 × 10 bits interleaved (x highest).
+inline uint32_t mortonCode(uint32_t x, uint32_t y, uint32_t z)
+{
+    auto spread = [](uint32_t v) {
+        v &= 0x3ff;
+        v = (v | v << 16) & 0x030000ffu;
+        v = (v | v << 8) & 0x0300f00fu;
+        v = (v | v << 4) & 0x030c30c3u;
+        v = (v | v << 2) & 0x09249249u;
+        return v;
+    };
+    return spread(x) << 2 | spread(y) << 1 | spread(z);
+}
+
+/// The indices 0..n-1 ordered by key (stable), by a two-pass 16-bit radix sort.
+std::vector<uint32_t> orderByKey(const std::vector<uint32_t>& key)
+{
+    const size_t n = key.size();
+    std::vector<uint32_t> a(n), b(n);
+    std::iota(a.begin(), a.end(), 0u);
+    for (int shift = 0; shift < 32; shift += 16) {
+        std::vector<uint32_t> count(65537, 0u);
+        for (uint32_t i : a) ++count[((key[i] >> shift) & 0xffffu) + 1];
+        for (size_t d = 1; d < count.size(); ++d) count[d] += count[d - 1];
+        for (uint32_t i : a) b[count[(key[i] >> shift) & 0xffffu]++] = i;
+        a.swap(b);
+    }
+    return a;
+}
+
+/// The mesh with its vertices and triangles in Morton order of their positions (blocks of 4
+/// cells of size `cell`; beyond 1024 blocks per axis the order coarsens), each triangle's vertex
+/// order kept: the voxelization and the per-leaf gathers then read nearby memory. Distances do
+/// not depend on the order; which of several equally near triangles is reported, and so the
+/// certified samples beyond the gather radius, may.
+TriangleMesh spatiallyOrdered(const TriangleMesh& mesh, double cell)
+{
+    const BBoxd b = mesh.bounds();
+    const double inv = 1.0 / (4.0 * cell);
+    auto key = [&](const Vec3d& p) {
+        uint32_t c[3];
+        for (int k = 0; k < 3; ++k) {
+            const double v = (p[k] - b.min()[k]) * inv; // unused vertices may lie anywhere, or be NaN
+            c[k] = v >= 0.0 ? uint32_t(std::min(v, 1023.0)) : 0u;
+        }
+        return mortonCode(c[0], c[1], c[2]);
+    };
+    TriangleMesh out;
+    out.source = mesh.source;
+    std::vector<uint32_t> vkey(mesh.points.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, vkey.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) vkey[i] = key(mesh.points[i]);
+    });
+    const std::vector<uint32_t> vorder = orderByKey(vkey);
+    std::vector<uint32_t> newIndex(vorder.size());
+    out.points.resize(vorder.size());
+    for (size_t i = 0; i < vorder.size(); ++i) {
+        newIndex[vorder[i]] = uint32_t(i);
+        out.points[i] = mesh.points[vorder[i]];
+    }
+    std::vector<uint32_t> tkey(mesh.triangles.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, tkey.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t t = r.begin(); t != r.end(); ++t) {
+            const Vec3I& tri = mesh.triangles[t];
+            tkey[t] = key((mesh.points[tri[0]] + mesh.points[tri[1]] + mesh.points[tri[2]]) / 3.0);
+        }
+    });
+    const std::vector<uint32_t> torder = orderByKey(tkey);
+    out.triangles.resize(torder.size());
+    for (size_t t = 0; t < torder.size(); ++t) {
+        const Vec3I& tri = mesh.triangles[torder[t]];
+        out.triangles[t] = Vec3I(newIndex[tri[0]], newIndex[tri[1]], newIndex[tri[2]]);
+    }
+    return out;
+}
+
+} // namespace
+
+AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& inputMesh, const AdaptiveDistanceFieldOptions& options,
                                                   AdaptiveDistanceFieldStats* statsOut)
 {
     openvdb::initialize();
@@ -1560,19 +1706,20 @@ AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& mesh, cons
         throw InvalidArgumentError("ADF padding must be a finite number of voxels >= 0");
     if (!std::isfinite(options.toleranceVoxels) || options.toleranceVoxels < 0)
         throw InvalidArgumentError("ADF tolerance must be a finite number of voxels >= 0 (0 = no refinement)");
-    requireUsableMesh(mesh);
+    requireUsableMesh(inputMesh);
     MeshToLevelSetOptions lsOpt;
     lsOpt.voxelSize = options.voxelSize;
     lsOpt.voxelCount = options.voxelCount;
-    const double h = resolveVoxelSize(mesh, lsOpt);
+    const double h = resolveVoxelSize(inputMesh, lsOpt);
     stats.voxelSize = h;
-    const BBoxd bounds = mesh.bounds();
+    const BBoxd bounds = inputMesh.bounds();
     for (int k = 0; k < 3; ++k) {
         const double lo = bounds.min()[k] / h - 1024, hi = bounds.max()[k] / h + 1024;
         if (!(std::abs(lo) < 1.0e9 && std::abs(hi) < 1.0e9))
             throw ResourceLimitError("voxel size is too small for this mesh: index coordinates would exceed 1e9");
     }
     if (interrupter) interrupter->start("mesh to ADF");
+    const TriangleMesh mesh = spatiallyOrdered(inputMesh, h);
 
     // ---- voxelization + triangle lists (cell space = index space: cell c = [c, c+1)³)
     const auto t0 = Clock::now();
