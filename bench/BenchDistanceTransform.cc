@@ -5,7 +5,12 @@
 // vector transforms and of the exact linear-time EDT.
 //
 //   levelforge_bench_dt [--repeats 3] [--big 256] [--pawn mesh.stl] [--pawn-res 60]
-//                       [--volume path --iso t] [--no-chamfer]
+//                       [--volume path --iso t] [--no-chamfer] [--digest]
+//
+// --digest prints, instead of the tables, an FNV-1a hash of every output vector (all four
+// floats, bit for bit) of each vector method at 1 and 2 lanes on every dataset, plus a
+// synthetic anisotropic volume with fractional (sub-voxel) seeds: any change to a kernel must
+// leave these digests unchanged.
 //
 // Datasets: the 80^3 sphere (centre 39.5, radius 29.5 voxels: its exact distance range ends
 // at the paper's 39.268); chess_pawn.stl voxelized at 60^3 (inside = the sign of the exact
@@ -33,7 +38,9 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -232,6 +239,53 @@ void throughput(const Dataset& d, int repeats)
     }
 }
 
+uint64_t fnv1a(const void* p, size_t n, uint64_t h = 1469598103934665603ull)
+{
+    const unsigned char* b = static_cast<const unsigned char*>(p);
+    for (size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ull;
+    return h;
+}
+
+/// Digests of every vector method (1 and 2 lanes) from the given seeds.
+void digestRows(const std::string& name, const VectorVolume& seeds)
+{
+    for (VectorTransformMethod m : {VectorTransformMethod::VCVDT8, VectorTransformMethod::VCVDT4,
+                                    VectorTransformMethod::EVDTFullGrid, VectorTransformMethod::EVDT}) {
+        for (int lanes : {1, 2}) {
+            VectorVolume v = seeds;
+            VectorTransformOptions o;
+            o.method = m;
+            o.threads = lanes;
+            VectorTransformStats st;
+            vectorDistanceTransform(v, o, &st);
+            std::printf("digest | %s | %s | %d lane(s) (%d used) | %016llx |\n", name.c_str(),
+                        vectorTransformMethodName(m), lanes, st.lanes,
+                        (unsigned long long)fnv1a(v.data.data(), v.data.size() * sizeof(ClosestVector)));
+            std::fflush(stdout);
+        }
+    }
+}
+
+/// Anisotropic volume with odd dims and fractional seeds (sub-voxel shells, Section 4).
+VectorVolume fractionalSeeds()
+{
+    VectorVolume v;
+    v.dims = openvdb::Coord(67, 45, 53);
+    v.spacing = Vec3d(0.7, 1.3, 1.1);
+    const float inf = std::numeric_limits<float>::infinity();
+    v.data.assign(size_t(67) * 45 * 53, ClosestVector{inf, inf, inf, inf});
+    std::mt19937 rng(12345);
+    std::uniform_real_distribution<float> u(-0.5f, 0.5f);
+    std::uniform_int_distribution<size_t> pick(0, v.data.size() - 1);
+    const openvdb::Vec3f sp(0.7f, 1.3f, 1.1f);
+    for (int i = 0; i < 300; ++i) {
+        ClosestVector& c = v.data[pick(rng)];
+        c.x = u(rng), c.y = u(rng), c.z = u(rng);
+        c.d2 = vectorLengthSquared(c.x, c.y, c.z, sp);
+    }
+    return v;
+}
+
 } // namespace
 
 int main(int argc, char** argv)
@@ -243,6 +297,7 @@ int main(int argc, char** argv)
     std::string volumePath;
     double iso = 0.0;
     bool haveIso = false;
+    bool digest = false;
     for (int a = 1; a < argc; ++a) {
         const std::string arg = argv[a];
         auto next = [&]() -> const char* {
@@ -259,10 +314,11 @@ int main(int argc, char** argv)
         else if (arg == "--volume") volumePath = next();
         else if (arg == "--iso") iso = std::atof(next()), haveIso = true;
         else if (arg == "--no-chamfer") chamfer = false;
+        else if (arg == "--digest") digest = true;
         else {
             std::fprintf(stderr,
                          "usage: levelforge_bench_dt [--repeats 3] [--big 256] [--pawn mesh.stl] [--pawn-res 60]\n"
-                         "                           [--volume path --iso t] [--no-chamfer]\n");
+                         "                           [--volume path --iso t] [--no-chamfer] [--digest]\n");
             return 2;
         }
     }
@@ -289,6 +345,15 @@ int main(int argc, char** argv)
             std::fprintf(stderr, "levelforge_bench_dt: built without VolumeIO.h; --volume unavailable\n");
             return 2;
 #endif
+        }
+        if (digest) {
+            for (const auto& d : sets) digestRows(d.name, initVectorVolume(transverseFeatures(d.inside)));
+            if (big > 0) {
+                const Dataset b = sphere(big, 0.5 * (big - 1), 0.37 * big);
+                digestRows(b.name, initVectorVolume(transverseFeatures(b.inside)));
+            }
+            digestRows("fractional seeds 67x45x53 (spacing 0.7 x 1.3 x 1.1)", fractionalSeeds());
+            return 0;
         }
         std::vector<Summary> summary;
         for (const auto& d : sets) summary.push_back(accuracyTables(d, repeats, chamfer));

@@ -210,7 +210,7 @@ struct Spacing
 /// before x in this row (x - xs) is in the volume and already final for this pass.
 /// Candidate order: vertical, previous row, previous voxel (the table order).
 template<bool Vert, bool Row, bool Unit>
-void passSpanT(ClosestVector* row, const ClosestVector* prevRow, const ClosestVector* vertRow, int x,
+inline __attribute__((always_inline)) void passSpanT(ClosestVector* row, const ClosestVector* prevRow, const ClosestVector* vertRow, int x,
               const int xEnd, const int xs, const bool havePrev, const float oy, const float oz,
               const Spacing& s)
 {
@@ -274,14 +274,51 @@ void passSpanT(ClosestVector* row, const ClosestVector* prevRow, const ClosestVe
 }
 
 template<bool Vert, bool Row>
-inline void passSpan(ClosestVector* row, const ClosestVector* prevRow, const ClosestVector* vertRow, int x,
-                     const int xEnd, const int xs, const bool havePrev, const float oy, const float oz,
-                     const Spacing& s)
+void passSpanBase(ClosestVector* row, const ClosestVector* prevRow, const ClosestVector* vertRow, int x,
+                  const int xEnd, const int xs, const bool havePrev, const float oy, const float oz,
+                  const Spacing& s)
 {
     if (s.sx == 1.0f && s.sy == 1.0f && s.sz == 1.0f)
         passSpanT<Vert, Row, true>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
     else
         passSpanT<Vert, Row, false>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
+}
+
+#if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
+#define LEVELFORGE_VDT_AVX 1
+// The same kernel compiled for AVX2 (VEX three-operand encoding: no register copies; the
+// arithmetic is the same scalar IEEE single precision, and FMA is NOT enabled, so no
+// multiply-add is contracted: the results are bit-identical).
+template<bool Vert, bool Row>
+__attribute__((target("avx2"))) void passSpanAvx2(ClosestVector* row, const ClosestVector* prevRow,
+                                                  const ClosestVector* vertRow, int x, const int xEnd, const int xs,
+                                                  const bool havePrev, const float oy, const float oz, const Spacing& s)
+{
+    if (s.sx == 1.0f && s.sy == 1.0f && s.sz == 1.0f)
+        passSpanT<Vert, Row, true>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
+    else
+        passSpanT<Vert, Row, false>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
+}
+
+bool cpuHasAvx2()
+{
+    static const bool has = __builtin_cpu_supports("avx2");
+    return has;
+}
+#endif
+
+std::atomic<bool> gAvx2KernelEnabled{true}; // testing hook (vector_transform_internal)
+
+template<bool Vert, bool Row>
+inline void passSpan(ClosestVector* row, const ClosestVector* prevRow, const ClosestVector* vertRow, int x,
+                     const int xEnd, const int xs, const bool havePrev, const float oy, const float oz,
+                     const Spacing& s)
+{
+#ifdef LEVELFORGE_VDT_AVX
+    if (cpuHasAvx2() && gAvx2KernelEnabled.load(std::memory_order_relaxed))
+        return passSpanAvx2<Vert, Row>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
+#endif
+    passSpanBase<Vert, Row>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
 }
 
 struct PassShape
@@ -506,6 +543,21 @@ void vectorDistanceTransform(VectorVolume& vectors, const VectorTransformOptions
         *stats = st;
     }
 }
+
+namespace vector_transform_internal {
+
+bool avx2KernelAvailable()
+{
+#ifdef LEVELFORGE_VDT_AVX
+    return cpuHasAvx2();
+#else
+    return false;
+#endif
+}
+
+void setAvx2KernelEnabled(bool enabled) { gAvx2KernelEnabled.store(enabled, std::memory_order_relaxed); }
+
+} // namespace vector_transform_internal
 
 ScalarVolume vectorLength(const VectorVolume& vectors)
 {

@@ -245,5 +245,14 @@ int wavefrontChunks(int width, int lanes);
 /// per-pass synchronisation), else 1. Never more than ny.
 int laneCountFor(int nx, int ny, int threads);
 
+/// Whether the per-row kernel runs its AVX2 build on this CPU (x86-64 with AVX2). It is the same
+/// scalar single-precision code in VEX encoding (no FMA), so results are bit-identical to the
+/// baseline x86-64 build; only the instruction count differs.
+bool avx2KernelAvailable();
+
+/// Testing hook: false forces the baseline build of the kernel (process-wide; not for use while
+/// a transform runs on another thread).
+void setAvx2KernelEnabled(bool enabled);
+
 } // namespace vector_transform_internal
 } // namespace levelforge
