@@ -23,8 +23,13 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 #include <sstream>
 #include <vector>
+
+#ifdef __SSE__
+#include <xmmintrin.h>
+#endif
 
 namespace levelforge {
 
@@ -107,39 +112,73 @@ void checkWidth(double v, const char* name, bool allowZero = false)
 }
 
 /// One voxel update: Godunov upwind solution of |∇φ| = 1 from the neighbour magnitudes
-/// (world units; h = voxel size). Double precision: float rounding lets values creep down
-/// by an ulp per round and delays convergence.
-inline float godunov(double a0, double a1, double a2, double h)
+/// (world units; h = voxel size, h2 = h²). Single precision with the discriminants written as
+/// sums of squared differences (2h² − (a1 − a0)², 3h² − Σ (ai − aj)²), which do not cancel.
+inline float sqrtNonNegative(float x)
 {
-    if (a0 > a1) std::swap(a0, a1);
-    if (a1 > a2) std::swap(a1, a2);
-    if (a0 > a1) std::swap(a0, a1);
-    double u = a0 + h;
-    if (u <= a1) return float(u);
-    const double d01 = a0 - a1;
-    u = 0.5 * (a0 + a1 + std::sqrt(std::max(2.0 * h * h - d01 * d01, 0.0)));
-    if (u <= a2) return float(u);
-    const double s = a0 + a1 + a2;
-    const double q = a0 * a0 + a1 * a1 + a2 * a2 - h * h;
-    return float((s + std::sqrt(std::max(s * s - 3.0 * q, 0.0))) / 3.0);
+#ifdef __SSE__
+    return _mm_cvtss_f32(_mm_sqrt_ss(_mm_set_ss(x))); // no errno branch
+#else
+    return std::sqrt(x);
+#endif
 }
 
-/// The sweeper: leaves of the expanded tree, their face neighbours, frozen/updatable masks and
-/// the hyperplane buckets of the four sweep diagonals.
+inline float godunov(float a0, float a1, float a2, float h, float h2)
+{
+    const float lo = std::min(a0, a1), hi = std::max(a0, a1);
+    a0 = std::min(lo, a2);
+    const float mid = std::max(lo, a2);
+    a1 = std::min(mid, hi);
+    a2 = std::max(mid, hi);
+    // the three candidates side by side (two independent square roots, no unpredictable branch)
+    const float u1 = a0 + h;
+    const float d01 = a1 - a0, d02 = a2 - a0, d12 = a2 - a1;
+    const float u2 = 0.5f * (a0 + a1 + sqrtNonNegative(std::max(2.0f * h2 - d01 * d01, 0.0f)));
+    const float disc = 3.0f * h2 - (d01 * d01 + d02 * d02 + d12 * d12);
+    const float u3 = (a0 + a1 + a2 + sqrtNonNegative(std::max(disc, 0.0f))) * (1.0f / 3.0f);
+    return u1 <= a1 ? u1 : (u2 <= a2 ? u2 : u3);
+}
+
+/// bit b of a byte -> bit 8b of a word (a column of a leaf's z face into mask-word layout)
+struct SpreadTable
+{
+    uint64_t t[256];
+    SpreadTable()
+    {
+        for (int v = 0; v < 256; ++v) {
+            uint64_t w = 0;
+            for (int b = 0; b < 8; ++b) if (v >> b & 1) w |= uint64_t(1) << (8 * b);
+            t[v] = w;
+        }
+    }
+};
+const SpreadTable kSpread;
+
+/// The sweeper: leaves of the expanded tree, their face neighbours, updatable masks and the
+/// hyperplane buckets of the four sweep diagonals, plus per-voxel dirty bits: a voxel is
+/// re-evaluated only when one of its six neighbours changed since its last evaluation (its
+/// Godunov value depends on nothing else, so skipping it changes no result).
 class Sweeper
 {
 public:
-    Sweeper(FloatTree& tree, const FloatTree& frozen, float h, float tol,
+    /// capPos / capNeg: voxels whose value would not be below the cap (world units) on their side
+    /// are left unreached (they are trimmed afterwards anyway, and no voxel below the cap
+    /// depends on them: the upwind stencil only reads smaller values).
+    Sweeper(FloatTree& tree, const FloatTree& frozen, float h, float tol, float capPos, float capNeg,
             openvdb::util::NullInterrupter* interrupter)
-        : mH(h), mTol(tol), mInterrupter(interrupter)
+        : mH(h), mTol(tol), mCapPos(capPos), mCapNeg(capNeg), mInterrupter(interrupter)
     {
         tree.getNodes(mLeaves);
         const size_t n = mLeaves.size();
         std::map<Coord, int32_t> index; // deterministic, only used during setup
         for (size_t i = 0; i < n; ++i) index.emplace(mLeaves[i]->origin(), int32_t(i));
         mNb.assign(n * 6, -1);
-        mUpdatable.resize(n);
+        mUpd.assign(n * 8, 0);
+        mDirty.assign(n * 8, 0);
+        mOut.assign(n * 6, 0);
+        mSide.assign(n, 0);
         mHasWork.assign(n, 0);
+        std::vector<char> hasFixed(n, 0);
         tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
             for (size_t i = r.begin(); i != r.end(); ++i) {
                 LeafT& leaf = *mLeaves[i];
@@ -158,15 +197,42 @@ public:
                 } else if (frozen.isValueOn(o)) {
                     upd.setOff(); // an active tile of the input covers this leaf
                 }
-                mUpdatable[i] = upd;
                 mHasWork[i] = upd.isOff() ? 0 : 1;
                 // Working values: inactive voxels are "not in the domain", new voxels not reached.
                 float* v = leaf.buffer().data();
+                int8_t side = 0;
+                bool uniform = true;
                 for (int j = 0; j < 512; ++j) {
-                    if (!leaf.isValueOn(j) || upd.isOn(j)) v[j] = std::copysign(kBig, v[j]);
+                    const bool u = upd.isOn(j);
+                    if (!leaf.isValueOn(j) || u) v[j] = std::copysign(kBig, v[j]);
+                    if (u) {
+                        const int8_t s = v[j] < 0 ? -1 : 1;
+                        if (side == 0) side = s;
+                        else if (s != side) uniform = false;
+                    }
                 }
+                mSide[i] = uniform ? side : 0;
+                for (int x = 0; x < 8; ++x) mUpd[i * 8 + x] = upd.getWord<uint64_t>(x);
+                MaskT fixed = leaf.getValueMask();
+                fixed -= upd;
+                hasFixed[i] = fixed.isOff() ? 0 : 1;
             }
         });
+        // First evaluations: the leaves that hold or touch a fixed (input band) value; a voxel
+        // elsewhere has only unreached neighbours until one of them changes (and marks it).
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+                bool seed = hasFixed[i] != 0;
+                for (int k = 0; k < 6 && !seed; ++k) {
+                    const int32_t nb = mNb[i * 6 + k];
+                    seed = nb >= 0 && hasFixed[nb];
+                }
+                if (seed) for (int x = 0; x < 8; ++x) mDirty[i * 8 + x] = mUpd[i * 8 + x];
+            }
+        });
+        mLastChange.assign(n, -1);
+        mLastProcessed.assign(n, -1);
+        mSelfChanged.assign(n, 1);
         // Buckets along the 4 diagonals (sx = +1; the opposite orderings run them backwards).
         for (int d = 0; d < 4; ++d) {
             const int sy = (d & 1) ? -1 : 1, sz = (d & 2) ? -1 : 1;
@@ -186,9 +252,6 @@ public:
                 i = j;
             }
         }
-        mLastChange.assign(n, -1);
-        mLastProcessed.assign(n, -1);
-        mSelfChanged.assign(n, 1);
     }
 
     uint64_t candidateVoxels() const
@@ -203,50 +266,58 @@ public:
     {
         static const int kOrder[8][3] = {{1, 1, 1},   {-1, -1, -1}, {1, 1, -1},  {-1, -1, 1},
                                          {1, -1, 1},  {-1, 1, -1},  {1, -1, -1}, {-1, 1, 1}};
-        int64_t sweep = 0;
-        int64_t step = 0; // bucket steps, in schedule order (for the skip test)
         int round = 0;
         double lastRoundMax = 0.0;
         bool converged = false;
-        std::atomic<uint64_t> leafUpdates{0};
-        while (round < maxIterations) {
-            double roundMax = 0.0;
-            bool anyChangeAboveTol = false;
-            for (int o = 0; o < 8; ++o, ++sweep) {
-                const int sx = kOrder[o][0], sy = kOrder[o][1], sz = kOrder[o][2];
-                // diagonal index: normalise so that sx = +1
-                const int ny = sy * sx, nz = sz * sx;
-                const int d = (ny < 0 ? 1 : 0) | (nz < 0 ? 2 : 0);
-                const auto& buckets = mBuckets[d];
-                const size_t nb = buckets.size();
-                for (size_t bi = 0; bi < nb; ++bi, ++step) {
-                    const auto& bucket = buckets[sx > 0 ? bi : nb - 1 - bi];
-                    const double m = tbb::parallel_reduce(
-                        tbb::blocked_range<size_t>(0, bucket.size(), 4), 0.0,
-                        [&](const tbb::blocked_range<size_t>& r, double acc) {
-                            uint64_t done = 0;
-                            for (size_t k = r.begin(); k != r.end(); ++k) {
-                                const int32_t li = bucket[k];
-                                if (!needsSweep(li)) continue;
-                                acc = std::max(acc, sweepLeaf(li, sx, sy, sz, step));
-                                ++done;
-                            }
-                            leafUpdates += done;
-                            return acc;
-                        },
-                        [](double a, double b) { return std::max(a, b); });
-                    roundMax = std::max(roundMax, m);
-                    if ((bi & 15) == 0) {
-                        progress_internal::check(mInterrupter,
-                            std::min(99, int(100.0 * (round * 8 + o + double(bi) / nb) /
-                                             (8.0 * std::max(3, round + 1)))));
-                    }
+        std::atomic<uint64_t> leafUpdates{0}, voxelEvaluations{0};
+        int64_t step = 0; // bucket steps, in schedule order (for the skip test)
+        // one sweep in ordering o over the given hyperplane buckets; returns the largest change
+        auto sweepOrdering = [&](const std::vector<std::vector<int32_t>>& buckets, int o,
+                                 double progressLo, double progressHi) {
+            const int sx = kOrder[o][0], sy = kOrder[o][1], sz = kOrder[o][2];
+            const size_t nb = buckets.size();
+            double mx = 0.0;
+            for (size_t bi = 0; bi < nb; ++bi, ++step) {
+                const auto& bucket = buckets[sx > 0 ? bi : nb - 1 - bi];
+                const double m = tbb::parallel_reduce(
+                    tbb::blocked_range<size_t>(0, bucket.size(), 4), 0.0,
+                    [&](const tbb::blocked_range<size_t>& r, double acc) {
+                        uint64_t done = 0, evals = 0;
+                        for (size_t k = r.begin(); k != r.end(); ++k) {
+                            const int32_t li = bucket[k];
+                            if (!needsSweep(li)) continue;
+                            bool swept = false;
+                            acc = std::max(acc, sweepLeaf(li, sx, sy, sz, step, swept, evals));
+                            done += swept ? 1 : 0;
+                        }
+                        leafUpdates += done;
+                        voxelEvaluations += evals;
+                        return acc;
+                    },
+                    [](double a, double b) { return std::max(a, b); });
+                mx = std::max(mx, m);
+                if ((bi & 15) == 0) {
+                    progress_internal::check(mInterrupter,
+                        std::min(99, int(progressLo + (progressHi - progressLo) * double(bi) / nb)));
                 }
             }
+            return mx;
+        };
+        auto diagonal = [](int o) {
+            // diagonal index: normalise so that sx = +1
+            const int ny = kOrder[o][1] * kOrder[o][0], nz = kOrder[o][2] * kOrder[o][0];
+            return (ny < 0 ? 1 : 0) | (nz < 0 ? 2 : 0);
+        };
+        while (round < maxIterations) {
+            double roundMax = 0.0;
+            const double pr = 100.0 / std::max(3, round + 1);
+            for (int o = 0; o < 8; ++o) {
+                const double lo = pr * round + pr * o / 8.0;
+                roundMax = std::max(roundMax, sweepOrdering(mBuckets[diagonal(o)], o, lo, lo + pr / 8.0));
+            }
             ++round;
-            anyChangeAboveTol = roundMax > mTol;
             lastRoundMax = roundMax;
-            if (!anyChangeAboveTol) {
+            if (!(roundMax > mTol)) {
                 converged = true;
                 break;
             }
@@ -256,12 +327,13 @@ public:
                                                        : lastRoundMax / mH);
         stats.converged = converged;
         stats.leafUpdates = leafUpdates;
+        stats.voxelUpdates = voxelEvaluations;
     }
 
 private:
-    /// A leaf whose last sweep changed nothing (by more than the tolerance) satisfies
-    /// φ <= Godunov(neighbours) at every voxel — a property of the values, not of the ordering —
-    /// so it is a fixed point of every ordering until a face neighbour changes.
+    /// Leaf-level skip: a leaf whose last sweep changed nothing by more than the tolerance is
+    /// swept again only when a face neighbour changed by more than the tolerance since (smaller
+    /// changes wait, as dirty bits, for the leaf's next sweep).
     bool needsSweep(int32_t li) const
     {
         if (!mHasWork[li]) return false;
@@ -274,70 +346,134 @@ private:
         return false;
     }
 
-    /// Gauss–Seidel sweep of one leaf in ordering (sx, sy, sz) on a padded 10^3 copy; returns the
-    /// largest change (world units; kBig when a voxel was reached for the first time).
-    double sweepLeaf(int32_t li, int sx, int sy, int sz, int64_t step)
+    /// Gauss–Seidel sweep of one leaf in ordering (sx, sy, sz) on a padded 10^3 copy, evaluating
+    /// only its dirty voxels; returns the largest change (world units; kBig when a voxel was
+    /// reached for the first time).
+    double sweepLeaf(int32_t li, int sx, int sy, int sz, int64_t step, bool& swept, uint64_t& evals)
     {
-        LeafT& leaf = *mLeaves[li];
-        float* v = leaf.buffer().data();
-        float P[10 * 10 * 10];
-        std::fill(P, P + 1000, kBig); // edges and corners of the pad are never read
-        auto pid = [](int x, int y, int z) { return (x + 1) * 100 + (y + 1) * 10 + (z + 1); };
-        for (int x = 0; x < 8; ++x)
-            for (int y = 0; y < 8; ++y)
-                for (int z = 0; z < 8; ++z) P[pid(x, y, z)] = v[(x << 6) | (y << 3) | z];
-        // halo: face neighbours (missing leaves: "not in the domain", signed like the inside)
-        static const int kLeafStride[3] = {64, 8, 1}, kPadStride[3] = {100, 10, 1};
+        uint64_t* d = &mDirty[size_t(li) * 8];
+        const uint64_t* upd = &mUpd[size_t(li) * 8];
+        // dirty bits from the faces of the neighbours that changed since they were last read
         for (int k = 0; k < 3; ++k) {
-            const int ka = (k + 1) % 3, kb = (k + 2) % 3;
             for (int s = 0; s < 2; ++s) {
                 const int32_t n = mNb[li * 6 + k * 2 + s];
-                const float* nv = n >= 0 ? mLeaves[n]->buffer().data() : nullptr;
-                const int innerOff = (s ? 7 : 0) * kLeafStride[k];
-                const int outerOff = (s ? 0 : 7) * kLeafStride[k];
-                const int padOff = (s ? 9 : 0) * kPadStride[k];
-                for (int i = 0; i < 8; ++i) {
-                    for (int j = 0; j < 8; ++j) {
-                        const int base = i * kLeafStride[ka] + j * kLeafStride[kb];
-                        const int pad = (i + 1) * kPadStride[ka] + (j + 1) * kPadStride[kb] + padOff;
-                        P[pad] = nv ? nv[base + outerOff] : std::copysign(kBig, v[base + innerOff]);
-                    }
+                if (n < 0) continue;
+                uint64_t& in = mOut[size_t(n) * 6 + k * 2 + (1 - s)];
+                const uint64_t m = in;
+                if (!m) continue;
+                in = 0;
+                const int face = s ? 7 : 0;
+                if (k == 0) {
+                    d[face] |= m & upd[face];
+                } else if (k == 1) {
+                    for (int a = 0; a < 8; ++a) d[a] |= (((m >> (8 * a)) & 0xff) << (8 * face)) & upd[a];
+                } else {
+                    for (int a = 0; a < 8; ++a) d[a] |= (kSpread.t[(m >> (8 * a)) & 0xff] << face) & upd[a];
                 }
             }
         }
-        const MaskT& upd = mUpdatable[li];
-        const float h = mH;
-        double maxChange = 0.0;
-        bool changedAboveTol = false;
-        // Fast path (nearly every leaf): all updatable voxels on one side of the surface; work on
-        // magnitudes relative to that side (the same numbers the general path computes).
-        float side = 0.0f;
-        bool uniform = true;
-        for (auto it = upd.beginOn(); it; ++it) {
-            const float s = v[it.pos()] < 0 ? -1.0f : 1.0f;
-            if (side == 0.0f) side = s;
-            else if (s != side) { uniform = false; break; }
+        uint64_t anyDirty = 0;
+        for (int x = 0; x < 8; ++x) anyDirty |= d[x];
+        if (!anyDirty) {
+            // a sweep would evaluate nothing
+            mLastProcessed[li] = step;
+            mSelfChanged[li] = 0;
+            return 0.0;
         }
+        swept = true;
+        LeafT& leaf = *mLeaves[li];
+        float* v = leaf.buffer().data();
+        float P[10 * 10 * 10];
+        auto pid = [](int x, int y, int z) { return (x + 1) * 100 + (y + 1) * 10 + (z + 1); };
+        const float side = float(mSide[li]);
+        const bool uniform = side != 0.0f;
         auto mag = [](float w, float sgn) {
             float r = w * sgn;
             if (r < 0) r = (r > -kBig * 0.5f) ? 0.0f : kBig; // across the surface
             return r;
         };
+        if (uniform) {
+            for (int x = 0; x < 8; ++x)
+                for (int y = 0; y < 8; ++y)
+                    for (int z = 0; z < 8; ++z) P[pid(x, y, z)] = mag(v[(x << 6) | (y << 3) | z], side);
+        } else {
+            for (int x = 0; x < 8; ++x)
+                for (int y = 0; y < 8; ++y)
+                    for (int z = 0; z < 8; ++z) P[pid(x, y, z)] = v[(x << 6) | (y << 3) | z];
+        }
+        // halo: face neighbours (missing leaves: "not in the domain")
+        static const int kLeafStride[3] = {64, 8, 1}, kPadStride[3] = {100, 10, 1};
+        for (int k = 0; k < 3; ++k) {
+            const int ka = (k + 1) % 3, kb = (k + 2) % 3;
+            for (int s = 0; s < 2; ++s) {
+                const int32_t n = mNb[li * 6 + k * 2 + s];
+                const int outerOff = (s ? 0 : 7) * kLeafStride[k];
+                const int padOff = (s ? 9 : 0) * kPadStride[k];
+                if (n < 0) {
+                    for (int i = 0; i < 8; ++i)
+                        for (int j = 0; j < 8; ++j)
+                            P[(i + 1) * kPadStride[ka] + (j + 1) * kPadStride[kb] + padOff] = kBig;
+                    continue;
+                }
+                const float* nv = mLeaves[n]->buffer().data();
+                for (int i = 0; i < 8; ++i) {
+                    for (int j = 0; j < 8; ++j) {
+                        const int base = i * kLeafStride[ka] + j * kLeafStride[kb];
+                        const int pad = (i + 1) * kPadStride[ka] + (j + 1) * kPadStride[kb] + padOff;
+                        const float w = nv[base + outerOff];
+                        P[pad] = uniform ? mag(w, side) : w;
+                    }
+                }
+            }
+        }
+        const float h = mH, h2 = mH * mH;
+        double maxChange = 0.0;
+        bool changedAboveTol = false;
+        uint64_t* out = &mOut[size_t(li) * 6];
         auto record = [&](float m, float un) {
             const double ch = m >= kBig * 0.5f ? double(kBig) : double(m - un);
             maxChange = std::max(maxChange, ch);
             if (ch > mTol) changedAboveTol = true;
         };
-        if (uniform) {
-            for (int i = 0; i < 1000; ++i) P[i] = mag(P[i], side);
-        }
+        // A changed voxel makes its neighbours dirty (across a face: the neighbour leaf's) — only
+        // those whose magnitude exceeds its new one (or all when it was reached for the first
+        // time, or in a leaf with both signs): a neighbour q with |φ_q| <= the new value cannot
+        // use it (the Godunov solution only depends on values below it, and q's own solution
+        // from its other neighbours was not below |φ_q|), so q's evaluation would not change.
+        uint64_t evaluations = 0;
+        auto touch = [&](int x, int y, int z, int p, float un, bool all) __attribute__((always_inline)) {
+            const int j = (y << 3) | z;
+            if (all || P[p - 1] > un) {
+                if (z > 0) d[x] |= uint64_t(1) << (j - 1); else out[4] |= uint64_t(1) << ((x << 3) | y);
+            }
+            if (all || P[p + 1] > un) {
+                if (z < 7) d[x] |= uint64_t(1) << (j + 1); else out[5] |= uint64_t(1) << ((x << 3) | y);
+            }
+            if (all || P[p - 10] > un) {
+                if (y > 0) d[x] |= uint64_t(1) << (j - 8); else out[2] |= uint64_t(1) << ((x << 3) | z);
+            }
+            if (all || P[p + 10] > un) {
+                if (y < 7) d[x] |= uint64_t(1) << (j + 8); else out[3] |= uint64_t(1) << ((x << 3) | z);
+            }
+            if (all || P[p - 100] > un) {
+                if (x > 0) d[x - 1] |= uint64_t(1) << j; else out[0] |= uint64_t(1) << j;
+            }
+            if (all || P[p + 100] > un) {
+                if (x < 7) d[x + 1] |= uint64_t(1) << j; else out[1] |= uint64_t(1) << j;
+            }
+        };
         for (int xi = 0; xi < 8; ++xi) {
             const int x = sx > 0 ? xi : 7 - xi;
+            if (!(d[x] & upd[x])) continue;
             for (int yi = 0; yi < 8; ++yi) {
                 const int y = sy > 0 ? yi : 7 - yi;
+                if (!(((d[x] & upd[x]) >> (8 * y)) & 0xff)) continue;
                 for (int zi = 0; zi < 8; ++zi) {
                     const int z = sz > 0 ? zi : 7 - zi;
-                    if (!upd.isOn((x << 6) | (y << 3) | z)) continue;
+                    const int j = (y << 3) | z;
+                    const uint64_t bit = uint64_t(1) << j;
+                    if (!(d[x] & upd[x] & bit)) continue;
+                    d[x] &= ~bit;
                     const int p = pid(x, y, z);
                     if (uniform) {
                         const float m = P[p];
@@ -345,10 +481,16 @@ private:
                         const float ay = std::min(P[p - 10], P[p + 10]);
                         const float az = std::min(P[p - 1], P[p + 1]);
                         if (std::min(ax, std::min(ay, az)) >= kBig * 0.5f) continue;
-                        const float un = godunov(ax, ay, az, h);
-                        if (un < m) {
+                        ++evaluations;
+                        const float un = godunov(ax, ay, az, h, h2);
+                        if (un < m && un < (side > 0 ? mCapPos : mCapNeg)) {
                             P[p] = un;
+                            v[(x << 6) | j] = un * side;
                             record(m, un);
+                                                        // a change of at most the tolerance is not passed on (as the leaf-level
+                            // skip does): rounding creep would otherwise ripple through the band
+                            const bool first = m >= kBig * 0.5f;
+                            if (first || m - un > mTol) touch(x, y, z, p, un, first);
                         }
                         continue;
                     }
@@ -359,30 +501,30 @@ private:
                     const float ay = std::min(mag(P[p - 10], sgn), mag(P[p + 10], sgn));
                     const float az = std::min(mag(P[p - 1], sgn), mag(P[p + 1], sgn));
                     if (std::min(ax, std::min(ay, az)) >= kBig * 0.5f) continue;
-                    const float un = godunov(ax, ay, az, h);
-                    if (un < m) {
+                    ++evaluations;
+                    const float un = godunov(ax, ay, az, h, h2);
+                    if (un < m && un < (sgn > 0 ? mCapPos : mCapNeg)) {
                         P[p] = un * sgn;
+                        v[(x << 6) | j] = un * sgn;
                         record(m, un);
+                        touch(x, y, z, p, un, true);
                     }
                 }
-            }
-        }
-        if (maxChange > 0) {
-            const float back = uniform ? side : 1.0f;
-            for (auto it = upd.beginOn(); it; ++it) {
-                const openvdb::Index j = it.pos();
-                v[j] = back * P[pid(int(j >> 6), int((j >> 3) & 7), int(j & 7))];
             }
         }
         if (changedAboveTol) mLastChange[li] = step;
         mLastProcessed[li] = step;
         mSelfChanged[li] = changedAboveTol ? 1 : 0;
+        evals += evaluations;
         return maxChange;
     }
 
     std::vector<LeafT*> mLeaves;
     std::vector<int32_t> mNb;
-    std::vector<MaskT> mUpdatable;
+    std::vector<uint64_t> mUpd;   ///< updatable voxels, 8 mask words per leaf
+    std::vector<uint64_t> mDirty; ///< voxels to re-evaluate, 8 mask words per leaf
+    std::vector<uint64_t> mOut;   ///< per face: own face voxels changed since the neighbour read them
+    std::vector<int8_t> mSide;    ///< sign of all updatable voxels of the leaf, 0 if mixed
     std::vector<char> mHasWork;
     std::vector<int64_t> mLastChange;    ///< last bucket step that changed the leaf (> tol)
     std::vector<int64_t> mLastProcessed; ///< last bucket step that swept the leaf
@@ -390,8 +532,90 @@ private:
     std::vector<std::vector<int32_t>> mBuckets[4];
     float mH;
     float mTol;
+    float mCapPos, mCapNeg;
     openvdb::util::NullInterrupter* mInterrupter;
 };
+
+
+/// floor(a / b) for b > 0
+inline int64_t floorDiv(int64_t a, int64_t b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+
+/// Leaf-granular candidate domain of the sweep: every leaf node that may hold a voxel closer than
+/// `radius` voxels to an active voxel of `band` (the gap between the leaf's box and the box of
+/// a band leaf's active voxels is below the radius), fully active. One pass over a dense grid
+/// of leaf cells instead of `radius` voxel dilation steps; it contains the Euclidean dilation.
+/// Returns null (the caller dilates voxel by voxel) when that grid would be too large.
+openvdb::MaskTree::Ptr leafDomain(const openvdb::MaskTree& band, double radius, uint64_t& leafCount)
+{
+    using MaskLeaf = openvdb::MaskTree::LeafNodeType;
+    std::vector<const MaskLeaf*> leaves;
+    band.getNodes(leaves);
+    leafCount = 0;
+    if (leaves.empty() || !(radius >= 0)) return nullptr;
+    const size_t n = leaves.size();
+    std::vector<openvdb::CoordBBox> boxes(n);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            openvdb::CoordBBox b;
+            for (auto it = leaves[i]->cbeginValueOn(); it; ++it) b.expand(it.getCoord());
+            boxes[i] = b;
+        }
+    });
+    const int64_t rc = int64_t(std::ceil(radius));
+    const double r2 = radius * radius;
+    int64_t lo[3] = {INT64_MAX, INT64_MAX, INT64_MAX}, hi[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
+    for (const auto& b : boxes) {
+        if (b.empty()) continue;
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], floorDiv(int64_t(b.min()[k]) - 7 - rc, 8));
+            hi[k] = std::max(hi[k], floorDiv(int64_t(b.max()[k]) + rc, 8));
+        }
+    }
+    if (lo[0] > hi[0]) return nullptr;
+    const int64_t dim[3] = {hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1};
+    const double cells = double(dim[0]) * double(dim[1]) * double(dim[2]);
+    if (cells > double(1 << 24)) return nullptr; // about 2048^3 voxels: dilate instead
+    std::unique_ptr<std::atomic<uint8_t>[]> grid(new std::atomic<uint8_t>[size_t(cells)]());
+    // the gap between leaf cell I (voxels 8I .. 8I+7) and the voxel range [a, b] along one axis
+    auto gap = [](int64_t I, int64_t a, int64_t b) {
+        return double(std::max<int64_t>({0, a - (8 * I + 7), 8 * I - b}));
+    };
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const openvdb::CoordBBox& b = boxes[i];
+            if (b.empty()) continue;
+            const int64_t a0 = b.min()[0], b0 = b.max()[0], a1 = b.min()[1], b1 = b.max()[1];
+            const int64_t a2 = b.min()[2], b2 = b.max()[2];
+            for (int64_t I = floorDiv(a0 - 7 - rc, 8); I <= floorDiv(b0 + rc, 8); ++I) {
+                const double g0 = gap(I, a0, b0);
+                const double rem0 = r2 - g0 * g0;
+                if (rem0 <= 0) continue;
+                for (int64_t J = floorDiv(a1 - 7 - rc, 8); J <= floorDiv(b1 + rc, 8); ++J) {
+                    const double g1 = gap(J, a1, b1);
+                    const double rem1 = rem0 - g1 * g1;
+                    if (rem1 <= 0) continue;
+                    const int64_t s = int64_t(std::ceil(std::sqrt(rem1)));
+                    const int64_t row = ((I - lo[0]) * dim[1] + (J - lo[1])) * dim[2] - lo[2];
+                    for (int64_t K = floorDiv(a2 - 7 - s, 8); K <= floorDiv(b2 + s, 8); ++K) {
+                        const double g2 = gap(K, a2, b2);
+                        if (g2 * g2 < rem1) grid[size_t(row + K)].store(1, std::memory_order_relaxed);
+                    }
+                }
+            }
+        }
+    });
+    openvdb::MaskTree::Ptr dom(new openvdb::MaskTree(false));
+    openvdb::tree::ValueAccessor<openvdb::MaskTree> acc(*dom);
+    size_t c = 0;
+    for (int64_t I = lo[0]; I <= hi[0]; ++I)
+        for (int64_t J = lo[1]; J <= hi[1]; ++J)
+            for (int64_t K = lo[2]; K <= hi[2]; ++K, ++c) {
+                if (!grid[c].load(std::memory_order_relaxed)) continue;
+                acc.touchLeaf(Coord(int(8 * I), int(8 * J), int(8 * K)))->setValuesOn();
+                ++leafCount;
+            }
+    return dom;
+}
 
 } // namespace
 
@@ -528,29 +752,44 @@ openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
             progress_internal::check(opt.interrupter, 0);
             return m;
         };
-        openvdb::MaskTree::Ptr large = dilated(rLarge);
-        if (opt.maxVoxels && large->activeVoxelCount() > opt.maxVoxels) {
-            throw ResourceLimitError("expandLevelSet: the dilated band holds " +
-                                     std::to_string(large->activeVoxelCount()) +
-                                     " voxels, more than the limit of " +
-                                     std::to_string(opt.maxVoxels) + " (reduce the widths)");
-        }
-        tree->topologyUnion(*large);
-        if (rSmall < rLarge) {
-            // Keep the larger dilation only on the side that asked for it.
-            openvdb::MaskTree::Ptr small = dilated(rSmall);
-            const bool dropNegative = rInt < rExt; // interior is the small side
-            openvdb::tree::LeafManager<FloatTree> lm(*tree);
-            lm.foreach([&](LeafT& leaf, size_t) {
-                const openvdb::MaskTree::LeafNodeType* sl = small->probeConstLeaf(leaf.origin());
-                const openvdb::MaskTree::LeafNodeType* bl = band.probeConstLeaf(leaf.origin());
-                for (auto it = leaf.beginValueOn(); it; ++it) {
-                    const openvdb::Index j = it.pos();
-                    if ((sl && sl->isValueOn(j)) || (bl && bl->isValueOn(j))) continue;
-                    const bool neg = *it < 0;
-                    if (neg == dropNegative) leaf.setValueOff(j);
-                }
-            });
+        uint64_t domainLeaves = 0;
+        openvdb::MaskTree::Ptr domain =
+            vectorMethod ? nullptr : leafDomain(band, rLarge, domainLeaves);
+        if (domain) {
+            // Sweep: whole leaves, the values capped at the kept widths (see Sweeper)
+            if (opt.maxVoxels && domainLeaves * 512 > opt.maxVoxels) {
+                throw ResourceLimitError("expandLevelSet: the candidate band holds " +
+                                         std::to_string(domainLeaves * 512) +
+                                         " voxels, more than the limit of " +
+                                         std::to_string(opt.maxVoxels) + " (reduce the widths)");
+            }
+            progress_internal::check(opt.interrupter, 0);
+            tree->topologyUnion(*domain);
+        } else {
+            openvdb::MaskTree::Ptr large = dilated(rLarge);
+            if (opt.maxVoxels && large->activeVoxelCount() > opt.maxVoxels) {
+                throw ResourceLimitError("expandLevelSet: the dilated band holds " +
+                                         std::to_string(large->activeVoxelCount()) +
+                                         " voxels, more than the limit of " +
+                                         std::to_string(opt.maxVoxels) + " (reduce the widths)");
+            }
+            tree->topologyUnion(*large);
+            if (rSmall < rLarge) {
+                // Keep the larger dilation only on the side that asked for it.
+                openvdb::MaskTree::Ptr small = dilated(rSmall);
+                const bool dropNegative = rInt < rExt; // interior is the small side
+                openvdb::tree::LeafManager<FloatTree> lm(*tree);
+                lm.foreach([&](LeafT& leaf, size_t) {
+                    const openvdb::MaskTree::LeafNodeType* sl = small->probeConstLeaf(leaf.origin());
+                    const openvdb::MaskTree::LeafNodeType* bl = band.probeConstLeaf(leaf.origin());
+                    for (auto it = leaf.beginValueOn(); it; ++it) {
+                        const openvdb::Index j = it.pos();
+                        if ((sl && sl->isValueOn(j)) || (bl && bl->isValueOn(j))) continue;
+                        const bool neg = *it < 0;
+                        if (neg == dropNegative) leaf.setValueOff(j);
+                    }
+                });
+            }
         }
     }
     if (interior) tree->topologyUnion(*interior);
@@ -589,7 +828,12 @@ openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
         stats.estimatedVectors = ps.estimatedVectors;
         stats.unreachedVoxels = ps.unreachedVoxels;
     } else {
-        Sweeper sweeper(*tree, input.tree(), float(h), float(opt.tolerance * h), opt.interrupter);
+        // values at or beyond the kept widths are trimmed afterwards: leave them unreached
+        const bool capped = opt.domain == ExpansionDomain::Band;
+        const float capPos = capped ? float(keepExt * h) : kBig;
+        const float capNeg = capped && !opt.fillInterior ? float(keepInt * h) : kBig;
+        Sweeper sweeper(*tree, input.tree(), float(h), float(opt.tolerance * h), capPos, capNeg,
+                        opt.interrupter);
         stats.candidateVoxels = sweeper.candidateVoxels();
         sweeper.run(opt.maxIterations, stats);
     }
