@@ -953,6 +953,17 @@ struct MeshScratch
 
 struct Nearest { double d2 = std::numeric_limits<double>::infinity(); uint32_t tri = kNone; TriangleClosestPoint cp{}; };
 
+std::atomic<bool> gAvx2LeafPass{true}; // testing hook (setAvx2LeafPassEnabled)
+
+// The leaf pass is compiled twice, for the baseline and for AVX2 (chosen at run time); its
+// helpers are inlined into both.
+#if defined(__GNUC__) && (defined(__x86_64__) || defined(_M_X64))
+#define LF_ADF_AVX2 1
+#define LF_HOT inline __attribute__((always_inline))
+#else
+#define LF_HOT inline
+#endif
+
 class MeshProvider : public SampleProvider
 {
 public:
@@ -966,7 +977,7 @@ public:
     /// Gathers the lists of the leaf region [o-4, o+12)³ (the cells the mReal table reaches
     /// from the leaf's cells); `latticeOnly` leaves out the last layer, which the mLattice table
     /// never reaches from the leaf's lattice points (their cells end at o+10).
-    void gather(const Coord& o, MeshScratch& s, bool latticeOnly) const
+    LF_HOT void gather(const Coord& o, MeshScratch& s, bool latticeOnly) const
     {
         s.cellSlot.assign(size_t(kRegion) * kRegion * kRegion, -1);
         s.rangeBegin.clear();
@@ -1071,7 +1082,7 @@ public:
     }
 
     /// The lower-bound planes of gathered triangle t (see TriPlanes).
-    static void preparePlanes(MeshScratch& s, uint32_t t)
+    LF_HOT static void preparePlanes(MeshScratch& s, uint32_t t)
     {
         s.planeReady[t] = 1;
         TriPlanes& P = s.planes[t];
@@ -1107,7 +1118,7 @@ public:
     }
 
     /// (sqrt(d2) + margin)²: a triangle whose plane bound exceeds it cannot come closer than d2.
-    static double boundLimit(double d2, double margin)
+    LF_HOT static double boundLimit(double d2, double margin)
     {
         if (!(d2 < std::numeric_limits<double>::infinity())) return d2;
         const double d = std::sqrt(d2) + margin;
@@ -1120,7 +1131,7 @@ public:
     /// stamped when its box first passes (a box that fails keeps failing: the best only
     /// shrinks); the plane bound only skips triangles that provably (with a rounding margin)
     /// cannot beat the current best, so the result, ties included, is that of the plain search.
-    Nearest nearest(const Vec3d& q, const Coord& baseLocal, const OffsetTable& table, MeshScratch& s) const
+    LF_HOT Nearest nearest(const Vec3d& q, const Coord& baseLocal, const OffsetTable& table, MeshScratch& s) const
     {
         Nearest best;
         if (++s.stampValue == 0) { std::fill(s.stamp.begin(), s.stamp.end(), 0u); s.stampValue = 1; }
@@ -1268,6 +1279,24 @@ public:
     }
 
     void leafSamples(size_t, FloatLeaf& leaf, const uint8_t* isFree, float* out) override
+    {
+#if defined(LF_ADF_AVX2)
+        if (avx2LeafPassAvailable() && gAvx2LeafPass.load(std::memory_order_relaxed)) return leafSamplesAvx2(leaf, isFree, out);
+#endif
+        leafSamplesBase(leaf, isFree, out);
+    }
+
+    void leafSamplesBase(FloatLeaf& leaf, const uint8_t* isFree, float* out) { leafSamplesImpl(leaf, isFree, out); }
+#if defined(LF_ADF_AVX2)
+    /// The same code compiled for AVX2 (VEX encoding; FMA is not enabled, so nothing is
+    /// contracted and every value is bit-identical to the base build's).
+    __attribute__((target("avx2"))) void leafSamplesAvx2(FloatLeaf& leaf, const uint8_t* isFree, float* out)
+    {
+        leafSamplesImpl(leaf, isFree, out);
+    }
+#endif
+
+    LF_HOT void leafSamplesImpl(FloatLeaf& leaf, const uint8_t* isFree, float* out)
     {
         MeshScratch& s = mScratch.local();
         const Coord o = leaf.origin();
@@ -1541,6 +1570,22 @@ Bounds checkBounds(const FloatTree& tree, const Layout& layout, MeshProvider& mp
 }
 
 } // namespace
+
+} // namespace adf_internal
+
+namespace adf_internal {
+
+bool avx2LeafPassAvailable()
+{
+#if defined(LF_ADF_AVX2)
+    static const bool has = __builtin_cpu_supports("avx2");
+    return has;
+#else
+    return false;
+#endif
+}
+
+void setAvx2LeafPassEnabled(bool enabled) { gAvx2LeafPass.store(enabled, std::memory_order_relaxed); }
 
 } // namespace adf_internal
 
