@@ -137,6 +137,25 @@ void checkSamples(const Built& b, const char* what)
                 (unsigned long long)exactChecked, maxType1, (unsigned long long)signChecked, (unsigned long long)tileChecked);
 }
 
+/// Same topology and every value (voxels and tiles) bit for bit; returns the values compared.
+uint64_t expectIdenticalTrees(const AdaptiveDistanceField& a, const AdaptiveDistanceField& b)
+{
+    const auto& t1 = a.grid()->tree();
+    const auto& t2 = b.grid()->tree();
+    EXPECT_EQ(t1.leafCount(), t2.leafCount());
+    EXPECT_EQ(t1.activeTileCount(), t2.activeTileCount());
+    auto it2 = t2.cbeginValueAll();
+    uint64_t n = 0;
+    for (auto it1 = t1.cbeginValueAll(); it1; ++it1, ++it2, ++n) {
+        if (!it2 || it1.getCoord() != it2.getCoord() || *it1 != *it2) {
+            ADD_FAILURE() << "trees differ at " << it1.getCoord();
+            return n;
+        }
+    }
+    EXPECT_FALSE(bool(it2));
+    return n;
+}
+
 } // namespace
 
 TEST(AdaptiveDistanceField, SphereSamplesBoundsAndSign)
@@ -341,18 +360,7 @@ TEST(AdaptiveDistanceField, SameResultForAnyThreadCount)
         one = meshToAdaptiveDistanceField(mesh, opt);
     }
     many = meshToAdaptiveDistanceField(mesh, opt);
-    const auto& t1 = one.grid()->tree();
-    const auto& t2 = many.grid()->tree();
-    EXPECT_EQ(t1.leafCount(), t2.leafCount());
-    EXPECT_EQ(t1.activeTileCount(), t2.activeTileCount());
-    auto it2 = t2.cbeginValueAll();
-    uint64_t n = 0;
-    for (auto it1 = t1.cbeginValueAll(); it1; ++it1, ++it2, ++n) {
-        ASSERT_TRUE(bool(it2));
-        ASSERT_EQ(it1.getCoord(), it2.getCoord());
-        ASSERT_EQ(*it1, *it2) << it1.getCoord();
-    }
-    EXPECT_GT(n, 1000u);
+    EXPECT_GT(expectIdenticalTrees(one, many), 1000u);
 }
 
 /// The builder sorts the mesh spatially; ties keep the input order, so a shuffled mesh may pick
@@ -420,16 +428,7 @@ TEST(AdaptiveDistanceField, Avx2LeafPassMatchesTheBaselineBitForBit)
         const AdaptiveDistanceField base = meshToAdaptiveDistanceField(mesh, opt);
         adf_internal::setAvx2LeafPassEnabled(true);
         const AdaptiveDistanceField fast = meshToAdaptiveDistanceField(mesh, opt);
-        const auto& t1 = base.grid()->tree();
-        const auto& t2 = fast.grid()->tree();
-        ASSERT_EQ(t1.leafCount(), t2.leafCount());
-        auto it2 = t2.cbeginValueAll();
-        uint64_t n = 0;
-        for (auto it1 = t1.cbeginValueAll(); it1; ++it1, ++it2, ++n) {
-            ASSERT_TRUE(bool(it2));
-            ASSERT_EQ(it1.getCoord(), it2.getCoord());
-            ASSERT_EQ(*it1, *it2) << it1.getCoord();
-        }
+        const uint64_t n = expectIdenticalTrees(base, fast);
         EXPECT_GT(n, 1000u);
         std::printf("  %llu values identical (AVX2 leaf pass %s)\n", (unsigned long long)n,
                     adf_internal::avx2LeafPassAvailable() ? "available" : "not available");
