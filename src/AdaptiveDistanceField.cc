@@ -879,8 +879,9 @@ private:
 
 /// A gathered triangle: cell-space vertices (double) and its mesh id.
 struct PreparedTri { Vec3d a, b, c; uint32_t id; };
-/// Its bounding box (the first, exact filter of the nearest search).
-/// In float relative to the leaf centre (w = 0), tested with a kPlaneSlack slack per axis.
+/// Its bounding box (the first, exact filter of the nearest search), computed once per gathered
+/// triangle and copied into the RefQuads of the cells that list it. In float relative to the
+/// leaf centre (w = 0), tested with a kPlaneSlack slack per axis.
 struct alignas(16) TriBox { float lo[4], hi[4]; };
 /// Lower-bound planes of a gathered triangle, relative to the leaf centre: the unit normal and
 /// the three in-plane outward edge normals (n, -n·a; m_k, -m_k·v_k). For a point p,
@@ -1697,10 +1698,9 @@ std::vector<uint32_t> orderByKey(const std::vector<uint32_t>& key)
 /// cells of size `cell`; beyond 1024 blocks per axis the order coarsens), each triangle's vertex
 /// order kept: the voxelization and the per-leaf gathers then read nearby memory. Distances do
 /// not depend on the order; which of several equally near triangles is reported, and so the
-/// certified samples beyond the gather radius, may.
-TriangleMesh spatiallyOrdered(const TriangleMesh& mesh, double cell)
+/// certified samples beyond the gather radius, may. `b`: the mesh's bounds (TriangleMesh::bounds).
+TriangleMesh spatiallyOrdered(const TriangleMesh& mesh, const BBoxd& b, double cell)
 {
-    const BBoxd b = mesh.bounds();
     const double inv = 1.0 / (4.0 * cell);
     auto key = [&](const Vec3d& p) {
         uint32_t c[3];
@@ -1764,7 +1764,7 @@ AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& inputMesh,
             throw ResourceLimitError("voxel size is too small for this mesh: index coordinates would exceed 1e9");
     }
     if (interrupter) interrupter->start("mesh to ADF");
-    const TriangleMesh mesh = spatiallyOrdered(inputMesh, h);
+    const TriangleMesh mesh = spatiallyOrdered(inputMesh, bounds, h);
 
     // ---- voxelization + triangle lists (cell space = index space: cell c = [c, c+1)³)
     const auto t0 = Clock::now();
