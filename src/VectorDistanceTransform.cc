@@ -14,9 +14,11 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <exception>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <sstream>
 #include <thread>
 #include <vector>
@@ -24,7 +26,9 @@
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
 #define LEVELFORGE_CPU_RELAX() _mm_pause()
+#define LEVELFORGE_PREFETCH(p) _mm_prefetch((p), _MM_HINT_T0)
 #else
+#define LEVELFORGE_PREFETCH(p) __builtin_prefetch((p))
 #define LEVELFORGE_CPU_RELAX() ((void)0)
 #endif
 
@@ -65,6 +69,9 @@ constexpr bool methodShapeOk(const MethodDef& m)
         for (int p = 0; p < sw.passCount; ++p) {
             if (!passShapeOk(sw.passes[p], sw.zOrder)) return false;
             if (sw.passes[p].perRow && sw.passes[p].yOrder != sw.passes[p - 1].yOrder) return false;
+            // Only the first pass reads the previous slice (the grouped layout relies on it).
+            for (int i = 0; p > 0 && i < sw.passes[p].neighbourCount; ++i)
+                if (sw.passes[p].neighbours[i].z != 0) return false;
         }
     }
     return m.sweeps[0].zOrder == 1 && m.sweeps[1].zOrder == -1;
@@ -204,122 +211,266 @@ struct Spacing
 };
 
 
-/// One pass over x = x..xEnd (exclusive, step xs) of one row. `row` is updated in place;
-/// `prevRow` is the previous row in pass order (already final for this pass) or null;
-/// `vertRow` the same row of the previous slice in sweep order, or null. havePrev: the voxel
-/// before x in this row (x - xs) is in the volume and already final for this pass.
-/// Candidate order: vertical, previous row, previous voxel (the table order).
+// ---------------------------------------------------------------------------------------------
+// Working layout. For the duration of a transform the volume's storage is reordered IN PLACE,
+// row by row, into groups of 8 voxels along x (AoSoA): group g of a row holds x[8], y[8], z[8],
+// d2[8] (a row's last group of w = nx - 8g < 8 voxels has the same layout with stride w). The
+// bytes of a group are the bytes of its 8 ClosestVectors, so no memory is added, and the
+// reorder is undone before vectorDistanceTransform() returns (also on interruption).
+constexpr int kGroup = 8;
+/// Fewest groups (of 8 columns) a lane gets; narrower volumes use fewer lanes.
+constexpr int kMinGroupsPerLane = 4;
+/// Rows the first pass of a slice prefetches ahead.
+constexpr int kPrefetchRows = 4;
+
+inline int groupWidth(int g, int nx) { return std::min(kGroup, nx - g * kGroup); }
+
+/// Reorders groups [g0, g1) of one row between ClosestVector order and the grouped layout.
+void reorderGroups(float* row, int g0, int g1, int nx, bool toGroups)
+{
+    for (int g = g0; g < g1; ++g) {
+        const int w = groupWidth(g, nx);
+        float* b = row + size_t(g) * kGroup * 4;
+#if defined(__SSE2__)
+        if (w == kGroup) {
+            // Two 4 x 4 transposes: voxels 0-3 and 4-7 <-> x, y, z, d2 of 4 voxels each.
+            __m128 r[8];
+            if (toGroups) {
+                for (int i = 0; i < 8; ++i) r[i] = _mm_loadu_ps(b + 4 * i); // voxel i
+            } else {
+                for (int c = 0; c < 4; ++c) {
+                    r[c] = _mm_loadu_ps(b + 8 * c);         // component c of voxels 0-3
+                    r[4 + c] = _mm_loadu_ps(b + 8 * c + 4); // component c of voxels 4-7
+                }
+            }
+            _MM_TRANSPOSE4_PS(r[0], r[1], r[2], r[3]);
+            _MM_TRANSPOSE4_PS(r[4], r[5], r[6], r[7]);
+            if (toGroups) {
+                for (int c = 0; c < 4; ++c) {
+                    _mm_storeu_ps(b + 8 * c, r[c]);
+                    _mm_storeu_ps(b + 8 * c + 4, r[4 + c]);
+                }
+            } else {
+                for (int i = 0; i < 8; ++i) _mm_storeu_ps(b + 4 * i, r[i]);
+            }
+            continue;
+        }
+#endif
+        float tmp[4 * kGroup];
+        for (int l = 0; l < w; ++l)
+            for (int c = 0; c < 4; ++c) {
+                if (toGroups) tmp[c * w + l] = b[l * 4 + c];
+                else tmp[l * 4 + c] = b[c * w + l];
+            }
+        std::memcpy(b, tmp, sizeof(float) * 4 * size_t(w));
+    }
+}
+
+/// reorderGroups() on every row of the volume (TBB).
+void reorderRows(float* base, int nx, size_t rows, bool toGroups)
+{
+    const int groups = (nx + kGroup - 1) / kGroup;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, rows, 64), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) reorderGroups(base + i * size_t(nx) * 4, 0, groups, nx, toGroups);
+    });
+}
+
+/// Puts the volume into the grouped layout for its lifetime (the two-slice EVDT).
+class GroupedScope
+{
+public:
+    GroupedScope(float* base, int nx, size_t rows) : mBase(base), mNx(nx), mRows(rows)
+    {
+        reorderRows(mBase, mNx, mRows, true);
+    }
+    ~GroupedScope() { reorderRows(mBase, mNx, mRows, false); }
+    GroupedScope(const GroupedScope&) = delete;
+    GroupedScope& operator=(const GroupedScope&) = delete;
+
+private:
+    float* mBase;
+    int mNx;
+    size_t mRows;
+};
+
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+using v8f = float __attribute__((vector_size(32)));
+using v8i = int32_t __attribute__((vector_size(32)));
+
+#define LEVELFORGE_AI inline __attribute__((always_inline))
+
+LEVELFORGE_AI v8f load8(const float* p)
+{
+    v8f v;
+    std::memcpy(&v, p, sizeof(v));
+    return v;
+}
+LEVELFORGE_AI void store8(float* p, const v8f& v) { std::memcpy(p, &v, sizeof(v)); }
+
+/// One candidate for 8 voxels at once: (nx, ny, nz) replaces (X, Y, Z, D) where its d2 is
+/// strictly smaller. The same single-precision operations as the scalar step (no FMA), so
+/// every lane gets the bits the scalar code would.
+template<bool Unit>
+LEVELFORGE_AI void tryCandidate8(v8f& X, v8f& Y, v8f& Z, v8f& D, v8f& YZ, const v8f& nx, const v8f& ny,
+                                 const v8f& nz, const Spacing& s)
+{
+    const v8f Xs = Unit ? nx : nx * s.sx, Ys = Unit ? ny : ny * s.sy, Zs = Unit ? nz : nz * s.sz;
+    const v8f nyz = Ys * Ys + Zs * Zs;
+    const v8f d2 = Xs * Xs + nyz;
+    const v8i m = d2 < D;
+    X = m ? nx : X;
+    Y = m ? ny : Y;
+    Z = m ? nz : Z;
+    D = m ? d2 : D;
+    YZ = m ? nyz : YZ;
+}
+
+template<bool Unit>
+LEVELFORGE_AI void tryCandidate1(float& X, float& Y, float& Z, float& D, float& YZ, float nx, float ny, float nz,
+                                 const Spacing& s)
+{
+    const float Xs = Unit ? nx : nx * s.sx, Ys = Unit ? ny : ny * s.sy, Zs = Unit ? nz : nz * s.sz;
+    const float nyz = Ys * Ys + Zs * Zs;
+    const float d2 = Xs * Xs + nyz;
+    if (d2 < D) {
+        X = nx;
+        Y = ny;
+        Z = nz;
+        D = d2;
+        YZ = nyz;
+    }
+}
+
+/// The element-wise part of a pass on groups [g0, g1) of one row: the vertical candidate
+/// (previous slice, offset oz) and the previous-row candidate (offset oy), in the table order,
+/// neither of which depends on the row's own chain. Writes each voxel's Y*Y + Z*Z to yz[x].
 template<bool Vert, bool Row, bool Unit>
-inline __attribute__((always_inline)) void passSpanT(ClosestVector* row, const ClosestVector* prevRow, const ClosestVector* vertRow, int x,
-              const int xEnd, const int xs, const bool havePrev, const float oy, const float oz,
-              const Spacing& s)
+LEVELFORGE_AI void rowCandidates(float* row, const float* prevRow, const float* vertRow, float* yz, int g0, int g1,
+                                 int nx, float oy, float oz, const Spacing& s)
 {
-    // Unit spacing: x * 1.0f == x exactly, so skipping the multiplications changes no bit.
-    const float sx = Unit ? 1.0f : s.sx, sy = Unit ? 1.0f : s.sy, sz = Unit ? 1.0f : s.sz;
-    const float ox = float(-xs);
-    // Chain carry: the previous voxel's vector and its Y*Y + Z*Z (unchanged by an x step).
-    float px = kInf, py = kInf, pz = kInf, pyz = kInf;
-    if (havePrev) {
-        const ClosestVector& p = row[x - xs];
-        px = p.x;
-        py = p.y;
-        pz = p.z;
-        const float Y = py * sy, Z = pz * sz;
-        pyz = Y * Y + Z * Z;
-    }
-    for (; x != xEnd; x += xs) {
-        ClosestVector c = row[x];
-        float yz;
-        {
-            const float Y = c.y * sy, Z = c.z * sz;
-            yz = Y * Y + Z * Z;
-        }
-        if constexpr (Vert) {
-            const ClosestVector n = vertRow[x];
-            const float nz = n.z + oz;
-            const float X = n.x * sx, Y = n.y * sy, Z = nz * sz;
-            const float nyz = Y * Y + Z * Z;
-            const float d2 = X * X + nyz;
-            if (d2 < c.d2) {
-                c = ClosestVector{n.x, n.y, nz, d2};
-                yz = nyz;
+    for (int g = g0; g < g1; ++g) {
+        const int w = groupWidth(g, nx);
+        const size_t off = size_t(g) * kGroup * 4;
+        float* c = row + off;
+        float* yzg = yz + size_t(g) * kGroup;
+        if (w == kGroup) {
+            v8f X = load8(c), Y = load8(c + 8), Z = load8(c + 16), D = load8(c + 24);
+            const v8f Ys = Unit ? Y : Y * s.sy, Zs = Unit ? Z : Z * s.sz;
+            v8f YZ = Ys * Ys + Zs * Zs;
+            if constexpr (Vert) {
+                const float* n = vertRow + off;
+                tryCandidate8<Unit>(X, Y, Z, D, YZ, load8(n), load8(n + 8), load8(n + 16) + oz, s);
+            }
+            if constexpr (Row) {
+                const float* n = prevRow + off;
+                tryCandidate8<Unit>(X, Y, Z, D, YZ, load8(n), load8(n + 8) + oy, load8(n + 16), s);
+            }
+            if constexpr (Vert || Row) {
+                store8(c, X);
+                store8(c + 8, Y);
+                store8(c + 16, Z);
+                store8(c + 24, D);
+            }
+            store8(yzg, YZ);
+        } else {
+            for (int l = 0; l < w; ++l) {
+                float X = c[l], Y = c[w + l], Z = c[2 * w + l], D = c[3 * w + l];
+                const float Ys = Unit ? Y : Y * s.sy, Zs = Unit ? Z : Z * s.sz;
+                float YZ = Ys * Ys + Zs * Zs;
+                if constexpr (Vert) {
+                    const float* n = vertRow + off;
+                    tryCandidate1<Unit>(X, Y, Z, D, YZ, n[l], n[w + l], n[2 * w + l] + oz, s);
+                }
+                if constexpr (Row) {
+                    const float* n = prevRow + off;
+                    tryCandidate1<Unit>(X, Y, Z, D, YZ, n[l], n[w + l] + oy, n[2 * w + l], s);
+                }
+                c[l] = X;
+                c[w + l] = Y;
+                c[2 * w + l] = Z;
+                c[3 * w + l] = D;
+                yzg[l] = YZ;
             }
         }
-        if constexpr (Row) {
-            const ClosestVector n = prevRow[x];
-            const float ny = n.y + oy;
-            const float X = n.x * sx, Y = ny * sy, Z = n.z * sz;
-            const float nyz = Y * Y + Z * Z;
-            const float d2 = X * X + nyz;
-            if (d2 < c.d2) {
-                c = ClosestVector{n.x, ny, n.z, d2};
-                yz = nyz;
-            }
-        }
-        {
-            const float cx = px + ox;
-            const float X = cx * sx;
-            const float d2 = X * X + pyz;
-            if (d2 < c.d2) {
-                c = ClosestVector{cx, py, pz, d2};
-                yz = pyz;
-            }
-        }
-        row[x] = c;
-        px = c.x;
-        py = c.y;
-        pz = c.z;
-        pyz = yz;
     }
 }
 
-template<bool Vert, bool Row>
-void passSpanBase(ClosestVector* row, const ClosestVector* prevRow, const ClosestVector* vertRow, int x,
-                  const int xEnd, const int xs, const bool havePrev, const float oy, const float oz,
-                  const Spacing& s)
+/// The chain carried along a row: the previous voxel's final vector and its Y*Y + Z*Z.
+struct Carry
 {
-    if (s.sx == 1.0f && s.sy == 1.0f && s.sz == 1.0f)
-        passSpanT<Vert, Row, true>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
+    float x = kInf, y = kInf, z = kInf, yz = kInf;
+};
+
+/// One in-row step: the previous voxel's vector moved by ox against the voxel's current one.
+template<bool Unit, int W>
+LEVELFORGE_AI void chainStep(float* c, const float* yzg, int l, Carry& p, float ox, float sx)
+{
+    const float cx = p.x + ox;
+    const float X = Unit ? cx : cx * sx;
+    const float d2 = X * X + p.yz;
+    if (d2 < c[3 * W + l]) {
+        c[l] = cx;
+        c[W + l] = p.y;
+        c[2 * W + l] = p.z;
+        c[3 * W + l] = d2;
+        p.x = cx;
+    } else {
+        p.x = c[l];
+        p.y = c[W + l];
+        p.z = c[2 * W + l];
+        p.yz = yzg[l];
+    }
+}
+
+/// The sequential part of a pass on groups [g0, g1) of one row, in x order xs (+1 / -1),
+/// starting from carry p (the voxel before the span in pass order, or +inf) and leaving the
+/// span's last voxel in it.
+template<bool Unit>
+LEVELFORGE_AI void rowChain(float* row, const float* yz, int g0, int g1, int nx, int xs, Carry& carry, const Spacing& s)
+{
+    const float ox = float(-xs), sx = s.sx;
+    Carry p = carry; // a local copy stays in registers (the row may alias `carry`)
+    const int gl = g1 - 1;
+    const int wl = groupWidth(gl, nx);
+    auto group = [&](int g) {
+        float* c = row + size_t(g) * kGroup * 4;
+        const float* yzg = yz + size_t(g) * kGroup;
+        const int w = g == gl ? wl : kGroup;
+        if (w == kGroup) {
+            if (xs > 0)
+                for (int l = 0; l < kGroup; ++l) chainStep<Unit, kGroup>(c, yzg, l, p, ox, sx);
+            else
+                for (int l = kGroup - 1; l >= 0; --l) chainStep<Unit, kGroup>(c, yzg, l, p, ox, sx);
+        } else {
+            // The short last group of a row: stride w. Rare, so the generic form.
+            for (int k = 0; k < w; ++k) {
+                const int l = xs > 0 ? k : w - 1 - k;
+                const float cx = p.x + ox;
+                const float X = Unit ? cx : cx * sx;
+                const float d2 = X * X + p.yz;
+                if (d2 < c[3 * w + l]) {
+                    c[l] = cx;
+                    c[w + l] = p.y;
+                    c[2 * w + l] = p.z;
+                    c[3 * w + l] = d2;
+                    p.x = cx;
+                } else {
+                    p.x = c[l];
+                    p.y = c[w + l];
+                    p.z = c[2 * w + l];
+                    p.yz = yzg[l];
+                }
+            }
+        }
+    };
+    if (xs > 0)
+        for (int g = g0; g < g1; ++g) group(g);
     else
-        passSpanT<Vert, Row, false>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
+        for (int g = g1 - 1; g >= g0; --g) group(g);
+    carry = p;
 }
-
-#if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
-#define LEVELFORGE_VDT_AVX 1
-// The same kernel compiled for AVX2 (VEX three-operand encoding: no register copies; the
-// arithmetic is the same scalar IEEE single precision, and FMA is NOT enabled, so no
-// multiply-add is contracted: the results are bit-identical).
-template<bool Vert, bool Row>
-__attribute__((target("avx2"))) void passSpanAvx2(ClosestVector* row, const ClosestVector* prevRow,
-                                                  const ClosestVector* vertRow, int x, const int xEnd, const int xs,
-                                                  const bool havePrev, const float oy, const float oz, const Spacing& s)
-{
-    if (s.sx == 1.0f && s.sy == 1.0f && s.sz == 1.0f)
-        passSpanT<Vert, Row, true>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
-    else
-        passSpanT<Vert, Row, false>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
-}
-
-bool cpuHasAvx2()
-{
-    static const bool has = __builtin_cpu_supports("avx2");
-    return has;
-}
-#endif
-
-std::atomic<bool> gAvx2KernelEnabled{true}; // testing hook (vector_transform_internal)
-
-template<bool Vert, bool Row>
-inline void passSpan(ClosestVector* row, const ClosestVector* prevRow, const ClosestVector* vertRow, int x,
-                     const int xEnd, const int xs, const bool havePrev, const float oy, const float oz,
-                     const Spacing& s)
-{
-#ifdef LEVELFORGE_VDT_AVX
-    if (cpuHasAvx2() && gAvx2KernelEnabled.load(std::memory_order_relaxed))
-        return passSpanAvx2<Vert, Row>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
-#endif
-    passSpanBase<Vert, Row>(row, prevRow, vertRow, x, xEnd, xs, havePrev, oy, oz, s);
-}
+#pragma GCC diagnostic pop
 
 struct PassShape
 {
@@ -342,24 +493,122 @@ PassShape shapeOf(const PassDef& p)
     return sh;
 }
 
-/// Runs pass `p` on row r (pass order) of a slice, pass-order x indices [cb, ce).
-void runPassRow(const PassDef& p, ClosestVector* slice, const ClosestVector* vertSlice, int nx, int ny,
-                int r, int cb, int ce, const Spacing& sp)
+/// One row's share of a pass, on the grouped layout: rows are nx voxels = 4 * nx floats.
+struct RowTask
+{
+    float* row;
+    const float* prevRow; // null: no previous-row candidate (first row, or not in the pass)
+    const float* vertRow; // null: no vertical candidate
+    float oy, oz;
+    int xs;
+    int g0, g1; // groups of the span
+    int nx;
+};
+
+template<bool Unit>
+LEVELFORGE_AI void runRowTaskT(const RowTask& t, float* yz, Carry& carry, const Spacing& s)
+{
+    if (t.vertRow && t.prevRow)
+        rowCandidates<true, true, Unit>(t.row, t.prevRow, t.vertRow, yz, t.g0, t.g1, t.nx, t.oy, t.oz, s);
+    else if (t.vertRow)
+        rowCandidates<true, false, Unit>(t.row, t.prevRow, t.vertRow, yz, t.g0, t.g1, t.nx, t.oy, t.oz, s);
+    else if (t.prevRow)
+        rowCandidates<false, true, Unit>(t.row, t.prevRow, t.vertRow, yz, t.g0, t.g1, t.nx, t.oy, t.oz, s);
+    else
+        rowCandidates<false, false, Unit>(t.row, t.prevRow, t.vertRow, yz, t.g0, t.g1, t.nx, t.oy, t.oz, s);
+}
+
+template<bool Unit>
+LEVELFORGE_AI void runRowChainT(const RowTask& t, const float* yz, Carry& carry, const Spacing& s)
+{
+    rowChain<Unit>(t.row, yz, t.g0, t.g1, t.nx, t.xs, carry, s);
+}
+
+void rowCandidatesBase(const RowTask& t, float* yz, const Spacing& s, bool unit)
+{
+    Carry unused;
+    if (unit) runRowTaskT<true>(t, yz, unused, s);
+    else runRowTaskT<false>(t, yz, unused, s);
+}
+
+void rowChainBase(const RowTask& t, const float* yz, Carry& carry, const Spacing& s, bool unit)
+{
+    if (unit) runRowChainT<true>(t, yz, carry, s);
+    else runRowChainT<false>(t, yz, carry, s);
+}
+
+#if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
+#define LEVELFORGE_VDT_AVX 1
+// The same kernel compiled for AVX2: the element-wise candidates run 8 voxels per instruction,
+// the chain gets the VEX three-operand encoding. The arithmetic is the same IEEE single
+// precision and FMA is NOT enabled (nothing is contracted), so the results are bit-identical.
+__attribute__((target("avx2"))) void rowCandidatesAvx2(const RowTask& t, float* yz, const Spacing& s, bool unit)
+{
+    Carry unused;
+    if (unit) runRowTaskT<true>(t, yz, unused, s);
+    else runRowTaskT<false>(t, yz, unused, s);
+}
+
+__attribute__((target("avx2"))) void rowChainAvx2(const RowTask& t, const float* yz, Carry& carry, const Spacing& s,
+                                                  bool unit)
+{
+    if (unit) runRowChainT<true>(t, yz, carry, s);
+    else runRowChainT<false>(t, yz, carry, s);
+}
+
+bool cpuHasAvx2()
+{
+    static const bool has = __builtin_cpu_supports("avx2");
+    return has;
+}
+#endif
+
+std::atomic<bool> gAvx2KernelEnabled{true}; // testing hook (vector_transform_internal)
+
+/// The kernel build (baseline or AVX2) chosen once per transform.
+struct Kernel
+{
+    void (*candidates)(const RowTask&, float*, const Spacing&, bool) = rowCandidatesBase;
+    void (*chain)(const RowTask&, const float*, Carry&, const Spacing&, bool) = rowChainBase;
+    Spacing s{1, 1, 1};
+    bool unit = true;
+
+    Kernel(const Spacing& sp) : s(sp), unit(sp.sx == 1.0f && sp.sy == 1.0f && sp.sz == 1.0f)
+    {
+#ifdef LEVELFORGE_VDT_AVX
+        if (cpuHasAvx2() && gAvx2KernelEnabled.load(std::memory_order_relaxed)) {
+            candidates = rowCandidatesAvx2;
+            chain = rowChainAvx2;
+        }
+#endif
+    }
+};
+
+/// Geometry of one slice on the grouped layout.
+struct SliceView
+{
+    float* slice;
+    const float* vertSlice; // the previous slice in sweep order, or null
+    int nx, ny;
+};
+
+/// The task of pass p, row r (in pass order), groups [g0, g1).
+RowTask rowTask(const PassDef& p, const SliceView& v, int r, int g0, int g1)
 {
     const PassShape sh = shapeOf(p);
-    const int y = p.yOrder > 0 ? r : ny - 1 - r;
-    ClosestVector* row = slice + size_t(y) * size_t(nx);
-    const ClosestVector* prevRow =
-        (sh.row && r > 0) ? slice + size_t(y - p.yOrder) * size_t(nx) : nullptr;
-    const ClosestVector* vertRow = (sh.vert && vertSlice) ? vertSlice + size_t(y) * size_t(nx) : nullptr;
-    const int xs = p.xOrder;
-    const int x0 = xs > 0 ? cb : nx - 1 - cb;
-    const int x1 = xs > 0 ? ce : nx - 1 - ce;
-    const bool havePrev = cb > 0;
-    if (vertRow && prevRow) passSpan<true, true>(row, prevRow, vertRow, x0, x1, xs, havePrev, sh.oy, sh.oz, sp);
-    else if (vertRow) passSpan<true, false>(row, prevRow, vertRow, x0, x1, xs, havePrev, sh.oy, sh.oz, sp);
-    else if (prevRow) passSpan<false, true>(row, prevRow, vertRow, x0, x1, xs, havePrev, sh.oy, sh.oz, sp);
-    else passSpan<false, false>(row, prevRow, vertRow, x0, x1, xs, havePrev, sh.oy, sh.oz, sp);
+    const int y = p.yOrder > 0 ? r : v.ny - 1 - r;
+    const size_t rowFloats = size_t(v.nx) * 4;
+    RowTask t;
+    t.row = v.slice + size_t(y) * rowFloats;
+    t.prevRow = (sh.row && r > 0) ? v.slice + size_t(y - p.yOrder) * rowFloats : nullptr;
+    t.vertRow = (sh.vert && v.vertSlice) ? v.vertSlice + size_t(y) * rowFloats : nullptr;
+    t.oy = sh.oy;
+    t.oz = sh.oz;
+    t.xs = p.xOrder;
+    t.g0 = g0;
+    t.g1 = g1;
+    t.nx = v.nx;
+    return t;
 }
 
 /// A pass together with the perRow passes that follow it.
@@ -386,13 +635,17 @@ bool hasPerRow(const MethodDef& m)
     return false;
 }
 
-/// All passes of one slice (serial), for the two-slice EVDT.
-void runSliceSerial(const SweepDef& sw, ClosestVector* slice, const ClosestVector* vertSlice, int nx, int ny,
-                    const Spacing& sp)
+/// Row r of pass group g over the whole row, serially (with its perRow passes).
+void runGroupRowSerial(const SweepDef& sw, const PassGroup& g, const SliceView& v, int r, float* yz,
+                       const Kernel& k)
 {
-    for (const PassGroup& g : groupsOf(sw)) {
-        for (int r = 0; r < ny; ++r)
-            for (int p = g.first; p < g.end; ++p) runPassRow(sw.passes[p], slice, vertSlice, nx, ny, r, 0, nx, sp);
+    const int groups = (v.nx + kGroup - 1) / kGroup;
+    for (int p = g.first; p < g.end; ++p) {
+        // A perRow pass follows its pass on the same row (same y).
+        const RowTask t = rowTask(sw.passes[p], v, r, 0, groups);
+        Carry carry;
+        k.candidates(t, yz, k.s, k.unit);
+        k.chain(t, yz, carry, k.s, k.unit);
     }
 }
 
@@ -404,42 +657,86 @@ void checkInterrupt(openvdb::util::NullInterrupter* interrupter, int percent)
     }
 }
 
-void runTwoSlices(VectorVolume& v, const MethodDef& m, const Spacing& sp,
-                  openvdb::util::NullInterrupter* interrupter)
+/// Mullikin's two-slice EVDT (grouped layout): each sweep starts from the input vectors and
+/// keeps the current and the previous slice; the result is the shorter vector per voxel.
+void runTwoSlices(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::util::NullInterrupter* interrupter)
 {
     const int nx = v.dims.x(), ny = v.dims.y(), nz = v.dims.z();
-    const size_t nxy = size_t(nx) * size_t(ny);
-    std::vector<ClosestVector> result(v.data.size());
-    std::vector<ClosestVector> prev(nxy), cur(nxy);
+    const size_t nxy = size_t(nx) * size_t(ny), sliceFloats = nxy * 4, rowFloats = size_t(nx) * 4;
+    float* data = reinterpret_cast<float*>(v.data.data());
+    std::vector<float> result(v.data.size() * 4);
+    std::vector<float> prev(sliceFloats), cur(sliceFloats), yz(size_t(nx) + kGroup);
     for (int s = 0; s < 2; ++s) {
         const SweepDef& sw = m.sweeps[s];
+        const auto groups = groupsOf(sw);
         for (int i = 0; i < nz; ++i) {
             checkInterrupt(interrupter, int((100.0 * (s * nz + i)) / (2.0 * nz)));
             const int z = sw.zOrder > 0 ? i : nz - 1 - i;
-            const ClosestVector* in = v.data.data() + size_t(z) * nxy;
-            std::copy(in, in + nxy, cur.begin());
-            runSliceSerial(sw, cur.data(), i > 0 ? prev.data() : nullptr, nx, ny, sp);
-            ClosestVector* out = result.data() + size_t(z) * nxy;
+            const float* in = data + size_t(z) * sliceFloats;
+            std::copy(in, in + sliceFloats, cur.begin());
+            const SliceView view{cur.data(), i > 0 ? prev.data() : nullptr, nx, ny};
+            for (const PassGroup& g : groups)
+                for (int r = 0; r < ny; ++r) runGroupRowSerial(sw, g, view, r, yz.data(), k);
+            float* out = result.data() + size_t(z) * sliceFloats;
             if (s == 0) {
                 std::copy(cur.begin(), cur.end(), out);
             } else {
-                for (size_t k = 0; k < nxy; ++k)
-                    if (cur[k].d2 < out[k].d2) out[k] = cur[k];
+                for (int y = 0; y < ny; ++y)
+                    for (int x0 = 0; x0 < nx; x0 += kGroup) {
+                        const int w = std::min(kGroup, nx - x0);
+                        const size_t b = size_t(y) * rowFloats + size_t(x0) * 4;
+                        for (int l = 0; l < w; ++l)
+                            if (cur[b + 3 * w + l] < out[b + 3 * w + l])
+                                for (int c = 0; c < 4; ++c) out[b + c * w + l] = cur[b + c * w + l];
+                    }
             }
             std::swap(prev, cur);
         }
     }
-    v.data.swap(result);
+    std::copy(result.begin(), result.end(), data);
 }
 
-void runFullGrid(VectorVolume& v, const MethodDef& m, const Spacing& sp,
-                 openvdb::util::NullInterrupter* interrupter, int threads, int& lanesUsed)
+/// Spin until `value` reaches `need`; false when `stop` is raised first. The lanes wait about
+/// once per slice (where a pass reverses the x order), briefly when the cores are free; when
+/// they are not, the lane waited for is not running and spinning only delays it, so the wait
+/// yields early.
+bool waitUntil(const std::atomic<int64_t>& value, int64_t need, const std::atomic<bool>& stop)
+{
+    for (int spin = 0; value.load(std::memory_order_acquire) < need; ++spin) {
+        if (stop.load(std::memory_order_relaxed)) return false;
+        if (spin < 32) LEVELFORGE_CPU_RELAX();
+        else std::this_thread::yield();
+    }
+    return true;
+}
+
+/// The full-grid methods (VCVDT4, VCVDT8, EVDTFullGrid), in place.
+///
+/// Layout: a row is put into the grouped layout when the forward sweep first visits it and back
+/// into ClosestVector order when the backward sweep has read it for the last time (as the
+/// vertical neighbour of the next slice; the last slice after its last pass), so the reorder
+/// costs no pass over memory of its own. Rows are never read in the other layout: only the first
+/// pass group of a sweep reads the vertical neighbour (methodShapeOk).
+///
+/// Lanes own COLUMNS: lane t owns the groups [G_t, G_t+1) of every row of every slice and runs
+/// every pass of every slice on them, in the serial order. A voxel's candidates come from its own
+/// previous-pass value, the previous row and the previous slice (both in the lane's own columns)
+/// and the previous voxel of its row; only the last crosses a column boundary, so the upstream
+/// lane (t - 1 for passes in +x order, t + 1 for -x) publishes its row's final vector and
+/// Y*Y + Z*Z in a carry slot with a progress counter, and the downstream lane starts that row's
+/// chain after it (the row's element-wise candidates run before the wait). Every voxel therefore
+/// sees exactly the values of the serial order: results are bit-identical for any lane count.
+/// Only one vector per row and pass crosses between cores. Methods with perRow passes (EVDT's
+/// F2/B2, which reverse the x order on each row) run on one lane.
+void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::util::NullInterrupter* interrupter,
+                 int threads, int& lanesUsed)
 {
     const int nx = v.dims.x(), ny = v.dims.y(), nz = v.dims.z();
-    const size_t nxy = size_t(nx) * size_t(ny);
+    const size_t rowFloats = size_t(nx) * 4, sliceFloats = rowFloats * size_t(ny);
     struct Stage
     {
-        int sweep, z, first, end;
+        int sweep, z;
+        PassGroup group;
         bool sliceStart;
     };
     std::vector<Stage> stages;
@@ -448,32 +745,117 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Spacing& sp,
         const auto groups = groupsOf(sw);
         for (int i = 0; i < nz; ++i) {
             const int z = sw.zOrder > 0 ? i : nz - 1 - i;
-            for (size_t g = 0; g < groups.size(); ++g)
-                stages.push_back({s, z, groups[g].first, groups[g].end, g == 0});
+            for (size_t g = 0; g < groups.size(); ++g) stages.push_back({s, z, groups[g], g == 0});
         }
     }
-    const bool perRow = hasPerRow(m);
-    const int lanes = perRow ? 1 : laneCountFor(nx, ny, threads);
-    const int chunks = perRow ? 1 : wavefrontChunks(nx, lanes);
-    lanesUsed = lanes;
-    ClosestVector* data = v.data.data();
-
-    auto work = [&](int si, int r, int c) {
-        const Stage& st = stages[size_t(si)];
-        const SweepDef& sw = m.sweeps[st.sweep];
-        ClosestVector* slice = data + size_t(st.z) * nxy;
-        const int vz = st.z - sw.zOrder;
-        const ClosestVector* vertSlice = (vz >= 0 && vz < nz) ? data + size_t(vz) * nxy : nullptr;
-        const int cb = int((int64_t(c) * nx) / chunks), ce = int((int64_t(c + 1) * nx) / chunks);
-        runPassRow(sw.passes[st.first], slice, vertSlice, nx, ny, r, cb, ce, sp);
-        for (int p = st.first + 1; p < st.end; ++p) runPassRow(sw.passes[p], slice, vertSlice, nx, ny, r, 0, nx, sp);
-    };
     const int total = int(stages.size());
-    auto begin = [&](int si) {
-        if (!interrupter || !stages[size_t(si)].sliceStart) return true;
-        return !interrupter->wasInterrupted(int((100.0 * si) / total));
+    const int columnGroups = (nx + kGroup - 1) / kGroup;
+    int lanes = hasPerRow(m) ? 1 : laneCountFor(nx, ny, threads);
+    lanes = std::max(1, std::min(lanes, columnGroups / kMinGroupsPerLane));
+    lanesUsed = lanes;
+    float* data = reinterpret_cast<float*>(v.data.data());
+
+    // Carry slots: lane t's last vector of row r in stage si lives in slot si % kCarryRing. A lane
+    // starting stage si first waits until its neighbours have finished stage si - kCarryRing, so
+    // a slot is never overwritten before it was read.
+    constexpr int kCarryRing = 8;
+    std::vector<Carry> carries(lanes > 1 ? size_t(lanes) * kCarryRing * size_t(ny) : 0);
+    std::unique_ptr<Progress[]> progress(new Progress[size_t(lanes)]);
+    std::atomic<bool> stop{false};
+    std::exception_ptr error;
+    std::mutex errorMutex;
+
+    auto laneBody = [&](int t, std::vector<uint8_t>& grouped) {
+        const int g0 = int((int64_t(t) * columnGroups) / lanes), g1 = int((int64_t(t + 1) * columnGroups) / lanes);
+        std::vector<float> yz(size_t(columnGroups) * kGroup);
+        auto reorderRow = [&](int z, int y, bool toGroups) {
+            reorderGroups(data + size_t(z) * sliceFloats + size_t(y) * rowFloats, g0, g1, nx, toGroups);
+            grouped[size_t(z) * size_t(ny) + size_t(y)] = toGroups;
+        };
+        for (int si = 0; si < total; ++si) {
+            const Stage& st = stages[size_t(si)];
+            if (t == 0 && interrupter && st.sliceStart && interrupter->wasInterrupted(int((100.0 * si) / total))) {
+                stop.store(true, std::memory_order_relaxed);
+                return;
+            }
+            if (si >= kCarryRing && lanes > 1) {
+                const int64_t need = int64_t(si - kCarryRing + 1) * ny;
+                if (t > 0 && !waitUntil(progress[t - 1].value, need, stop)) return;
+                if (t + 1 < lanes && !waitUntil(progress[t + 1].value, need, stop)) return;
+            }
+            if (stop.load(std::memory_order_relaxed)) return;
+            const SweepDef& sw = m.sweeps[st.sweep];
+            const PassDef& p = sw.passes[st.group.first];
+            const int vz = st.z - sw.zOrder;
+            const bool haveVert = vz >= 0 && vz < nz;
+            const SliceView sv{data + size_t(st.z) * sliceFloats, haveVert ? data + size_t(vz) * sliceFloats : nullptr,
+                               nx, ny};
+            const bool firstVisit = st.sweep == 0 && st.sliceStart;
+            const bool lastVertRead = st.sweep == 1 && st.sliceStart && haveVert;
+            const int up = p.xOrder > 0 ? t - 1 : t + 1;
+            const bool hasUp = up >= 0 && up < lanes;
+            const bool hasDown = p.xOrder > 0 ? t + 1 < lanes : t > 0;
+            const size_t slot = size_t(si % kCarryRing) * size_t(ny);
+            Carry* mySlot = hasDown ? carries.data() + size_t(t) * kCarryRing * size_t(ny) + slot : nullptr;
+            const Carry* upSlot = hasUp ? carries.data() + size_t(up) * kCarryRing * size_t(ny) + slot : nullptr;
+            for (int r = 0; r < ny; ++r) {
+                const int y = p.yOrder > 0 ? r : ny - 1 - r;
+                if (st.sliceStart && r + kPrefetchRows < ny) {
+                    // The first pass of a slice reads it from memory: every row is a new page,
+                    // which the hardware prefetchers do not cross, so fetch a few rows ahead.
+                    const int py = p.yOrder > 0 ? r + kPrefetchRows : ny - 1 - r - kPrefetchRows;
+                    const char* b = reinterpret_cast<const char*>(sv.slice + size_t(py) * rowFloats +
+                                                                  size_t(g0) * kGroup * 4);
+                    const size_t bytes = size_t(std::min(nx, g1 * kGroup) - g0 * kGroup) * 16;
+                    for (size_t o = 0; o < bytes; o += 64) LEVELFORGE_PREFETCH(b + o);
+                }
+                if (firstVisit) reorderRow(st.z, y, true);
+                const RowTask task = rowTask(p, sv, r, g0, g1);
+                k.candidates(task, yz.data(), k.s, k.unit);
+                if (lastVertRead) reorderRow(vz, y, false);
+                Carry carry;
+                if (hasUp) {
+                    if (!waitUntil(progress[up].value, int64_t(si) * ny + r + 1, stop)) return;
+                    carry = upSlot[r];
+                }
+                k.chain(task, yz.data(), carry, k.s, k.unit);
+                if (hasDown) mySlot[r] = carry;
+                // perRow passes (one lane only): right after their pass, on the same row.
+                for (int q = st.group.first + 1; q < st.group.end; ++q) {
+                    const RowTask rt = rowTask(sw.passes[q], sv, r, g0, g1);
+                    Carry c;
+                    k.candidates(rt, yz.data(), k.s, k.unit);
+                    k.chain(rt, yz.data(), c, k.s, k.unit);
+                }
+                if (lanes > 1) progress[t].value.store(int64_t(si) * ny + r + 1, std::memory_order_release);
+            }
+        }
+        const int lastZ = stages.back().z;
+        for (int y = 0; y < ny; ++y) reorderRow(lastZ, y, false);
     };
-    if (!runRowWavefront(total, ny, chunks, 0, lanes, work, begin)) {
+
+    auto lane = [&](int t) {
+        std::vector<uint8_t> grouped(size_t(nz) * size_t(ny), 0);
+        try {
+            laneBody(t, grouped);
+        } catch (...) {
+            std::lock_guard<std::mutex> lock(errorMutex);
+            if (!error) error = std::current_exception();
+            stop.store(true, std::memory_order_relaxed);
+        }
+        // Interrupted or failed: put this lane's columns back into ClosestVector order.
+        const int g0 = int((int64_t(t) * columnGroups) / lanes), g1 = int((int64_t(t + 1) * columnGroups) / lanes);
+        for (size_t i = 0; i < grouped.size(); ++i)
+            if (grouped[i]) reorderGroups(data + i * rowFloats, g0, g1, nx, false);
+    };
+
+    std::vector<std::thread> workers;
+    workers.reserve(size_t(lanes - 1));
+    for (int t = 1; t < lanes; ++t) workers.emplace_back(lane, t);
+    lane(0);
+    for (auto& th : workers) th.join();
+    if (error) std::rethrow_exception(error);
+    if (stop.load()) {
         if (interrupter) interrupter->end();
         throw InterruptedError("vector distance transform interrupted");
     }
@@ -530,11 +912,14 @@ void vectorDistanceTransform(VectorVolume& vectors, const VectorTransformOptions
     if (stats) st.seeds = countFinite(vectors.data);
     st.passesPerVoxel = m.sweeps[0].passCount + m.sweeps[1].passCount;
     if (options.interrupter) options.interrupter->start("vector distance transform");
+    const Kernel kernel(sp);
     if (m.twoSlices) {
-        runTwoSlices(vectors, m, sp, options.interrupter);
+        const GroupedScope grouped(reinterpret_cast<float*>(vectors.data.data()), vectors.dims.x(),
+                                   size_t(vectors.dims.y()) * size_t(vectors.dims.z()));
+        runTwoSlices(vectors, m, kernel, options.interrupter);
         st.lanes = 1;
     } else {
-        runFullGrid(vectors, m, sp, options.interrupter, options.threads, st.lanes);
+        runFullGrid(vectors, m, kernel, options.interrupter, options.threads, st.lanes);
     }
     if (options.interrupter) options.interrupter->end();
     st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -1,7 +1,8 @@
 // Tests for VectorDistanceTransform.h against the exact EDT (ExactDistanceTransform.h, itself
 // tested against brute force) and analytic distances: single seeds (binary and fractional), the
 // paper's error wake (§3.2), the 80^3 sphere of Tables 5–6, sub-voxel planar shells, anisotropic
-// spacing, thread-count determinism, bad inputs and interruption.
+// spacing, thread-count determinism, a literal reading of the pass tables (bit for bit), bad
+// inputs and interruption.
 #include <levelforge/VectorDistanceTransform.h>
 
 #include <levelforge/ChamferDistanceTransform.h>
@@ -372,6 +373,149 @@ TEST(VectorDistanceTransform, Avx2KernelMatchesTheBaselineBitForBit)
                             << " avx2 " << vector_transform_internal::avx2KernelAvailable();
                     }
                 }
+            }
+}
+
+namespace {
+
+/// The pass tables read literally (VectorDistanceTransform.h): every sweep, slice, pass (each
+/// perRow pass right after its pass on the same row) and voxel in raster order; each listed
+/// neighbour inside the volume gives the candidate V(q) + o, which replaces V(p) when its
+/// d2 = X*X + (Y*Y + Z*Z) is strictly smaller. No layout tricks, no lanes, no SIMD.
+void referenceSweep(VectorVolume& v, const vector_transform_internal::SweepDef& sw)
+{
+    const int nx = v.dims.x(), ny = v.dims.y(), nz = v.dims.z();
+    const float sx = float(v.spacing[0]), sy = float(v.spacing[1]), sz = float(v.spacing[2]);
+    auto runRow = [&](const vector_transform_internal::PassDef& p, int y, int z) {
+        for (int k = 0; k < nx; ++k) {
+            const int x = p.xOrder > 0 ? k : nx - 1 - k;
+            ClosestVector& c = v(x, y, z);
+            for (int i = 0; i < p.neighbourCount; ++i) {
+                const auto& o = p.neighbours[i];
+                const int qx = x + o.x, qy = y + o.y, qz = z + o.z;
+                if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz) continue;
+                const ClosestVector n = v(qx, qy, qz);
+                const float cx = n.x + float(o.x), cy = n.y + float(o.y), cz = n.z + float(o.z);
+                const float X = cx * sx, Y = cy * sy, Z = cz * sz;
+                const float d2 = X * X + (Y * Y + Z * Z);
+                if (d2 < c.d2) c = ClosestVector{cx, cy, cz, d2};
+            }
+        }
+    };
+    for (int i = 0; i < nz; ++i) {
+        const int z = sw.zOrder > 0 ? i : nz - 1 - i;
+        for (int p = 0; p < sw.passCount; ++p) {
+            if (sw.passes[p].perRow) continue;
+            for (int r = 0; r < ny; ++r) {
+                const int y = sw.passes[p].yOrder > 0 ? r : ny - 1 - r;
+                runRow(sw.passes[p], y, z);
+                for (int q = p + 1; q < sw.passCount && sw.passes[q].perRow; ++q) runRow(sw.passes[q], y, z);
+            }
+        }
+    }
+}
+
+VectorVolume referenceTransform(const VectorVolume& seeds, VectorTransformMethod method)
+{
+    const auto& m = vector_transform_internal::methodDef(method);
+    if (!m.twoSlices) {
+        VectorVolume v = seeds;
+        referenceSweep(v, m.sweeps[0]);
+        referenceSweep(v, m.sweeps[1]);
+        return v;
+    }
+    VectorVolume f = seeds, b = seeds; // each sweep from the input, the shorter vector wins
+    referenceSweep(f, m.sweeps[0]);
+    referenceSweep(b, m.sweeps[1]);
+    for (size_t i = 0; i < f.data.size(); ++i)
+        if (b.data[i].d2 < f.data[i].d2) f.data[i] = b.data[i];
+    return f;
+}
+
+} // namespace
+
+TEST(VectorDistanceTransform, MatchesALiteralReadingOfThePassTables)
+{
+    // The optimised transform (grouped layout, SIMD candidates, column lanes) must give exactly
+    // the bits of the literal raster order, for every method, row widths around the group size
+    // of 8, fractional seeds, anisotropic spacing and 1..3 lanes.
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> frac(-0.5f, 0.5f);
+    const openvdb::Coord dimsList[] = {openvdb::Coord(1, 1, 1),  openvdb::Coord(7, 5, 4),   openvdb::Coord(8, 3, 3),
+                                       openvdb::Coord(9, 17, 5), openvdb::Coord(35, 6, 7),  openvdb::Coord(100, 9, 12),
+                                       openvdb::Coord(131, 19, 6)};
+    const openvdb::Vec3d spacings[] = {openvdb::Vec3d(1.0), openvdb::Vec3d(0.6, 1.7, 1.2)};
+    for (const auto& dims : dimsList)
+        for (const auto& sp : spacings)
+            for (bool fractional : {false, true}) {
+                VectorVolume seeds(dims, ClosestVector{kInf, kInf, kInf, kInf}, sp);
+                std::uniform_int_distribution<size_t> pick(0, seeds.data.size() - 1);
+                const int n = std::max<int>(1, int(seeds.data.size() / 61));
+                for (int i = 0; i < n; ++i) {
+                    ClosestVector& c = seeds.data[pick(rng)];
+                    if (fractional) c = seedVector(openvdb::Vec3d(frac(rng), frac(rng), frac(rng)), sp);
+                    else c = ClosestVector{0.f, 0.f, 0.f, 0.f};
+                }
+                for (VectorTransformMethod m : kMethods) {
+                    const VectorVolume ref = referenceTransform(seeds, m);
+                    for (int lanes : {1, 2, 3}) {
+                        tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(lanes));
+                        tbb::task_arena arena(lanes);
+                        VectorVolume v = seeds;
+                        arena.execute([&] {
+                            VectorTransformOptions o;
+                            o.method = m;
+                            o.threads = lanes;
+                            vectorDistanceTransform(v, o);
+                        });
+                        ASSERT_EQ(0, std::memcmp(v.data.data(), ref.data.data(), ref.data.size() * sizeof(ClosestVector)))
+                            << vectorTransformMethodName(m) << " dims " << dims << " spacing " << sp << " fractional "
+                            << fractional << " lanes " << lanes;
+                    }
+                }
+            }
+}
+
+TEST(VectorDistanceTransform, InterruptionLeavesWholeVectors)
+{
+    // The transform reorders rows into a grouped working layout as it goes; stopped part-way
+    // (forward or backward sweep, 1 or 2 lanes) it must still leave whole ClosestVectors: every
+    // finite vector with its own squared length, every other voxel all +inf.
+    MaskVolume features(openvdb::Coord(70, 23, 12), 0);
+    features(5, 7, 3) = 1;
+    features(61, 20, 9) = 1;
+    const VectorVolume seeds = initVectorVolume(features);
+    struct StopAt : openvdb::util::NullInterrupter
+    {
+        int calls = 0, at = 0;
+        bool wasInterrupted(int) override { return ++calls >= at; }
+    };
+    for (VectorTransformMethod m : kMethods)
+        for (int at : {2, 5, 15, 20})
+            for (int lanes : {1, 2}) {
+                tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(lanes));
+                tbb::task_arena arena(lanes);
+                VectorVolume v = seeds;
+                StopAt stop;
+                stop.at = at;
+                arena.execute([&] {
+                    VectorTransformOptions o;
+                    o.method = m;
+                    o.threads = lanes;
+                    o.interrupter = &stop;
+                    EXPECT_THROW(vectorDistanceTransform(v, o), InterruptedError) << vectorTransformMethodName(m);
+                });
+                size_t finite = 0;
+                for (const ClosestVector& c : v.data) {
+                    if (std::isinf(c.d2)) {
+                        ASSERT_TRUE(std::isinf(c.x) && std::isinf(c.y) && std::isinf(c.z));
+                        continue;
+                    }
+                    ++finite;
+                    ASSERT_EQ(c.d2, vectorLengthSquared(c.x, c.y, c.z, openvdb::Vec3f(1.0f)))
+                        << vectorTransformMethodName(m) << " stopped at call " << at << ", lanes " << lanes;
+                }
+                EXPECT_GE(finite, 2u);
             }
 }
 

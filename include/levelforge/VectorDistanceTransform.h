@@ -53,18 +53,25 @@
 // shell of closest-surface-point vectors (fractional, voxel units) propagates like binary
 // features. Unknown voxels hold x = y = z = d2 = +inf; voxels no seed can reach stay +inf.
 //
+// Implementation (none of it changes a bit of the result; test MatchesALiteralReadingOfThePassTables
+// compares with the tables read literally): while it runs, the transform keeps each row in
+// groups of 8 voxels along x (x[8], y[8], z[8], d2[8], in place in the same bytes; a row is
+// regrouped when the forward sweep first reads it and restored when the backward sweep has read
+// it for the last time, also on interruption). A pass on a row is split into the element-wise
+// candidates (vertical and previous row: 8 voxels per SIMD step) and the in-row chain (the
+// previous voxel, sequential). x86-64 CPUs with AVX2 run an AVX2 build of the same code (no FMA:
+// bit-identical).
+//
 // Parallelism: each in-slice pass is a 2-D raster with dependencies on x-1 and y-1 (in pass
-// order), so it is run as a row-pipelined wavefront on plain std::thread lanes: lane t owns the
-// rows r = t mod T (r in pass order) and processes x-chunk c of row r only after row r-1 has
-// published chunk c (atomic progress counters); passes are separated by a barrier. Every voxel
-// therefore sees exactly the values of the serial order: results are bit-identical for any
-// T (T = the TBB arena's concurrency, capped by tbb::global_control). Lanes are real threads,
-// not TBB tasks, so the spin-waits cannot deadlock. The pipeline synchronises once per row chunk
-// and once per pass: it can only pay on a machine whose cores are free, and loses badly when
-// the cores are oversubscribed (a preempted lane stalls the others: 3x slower than serial on
-// our shared 2-core machine, docs/benchmarks.md, "Distance transforms on dense volumes"). It is therefore opt-in
-// (VectorTransformOptions::threads); the default is one lane. EVDT's row-interleaved passes (F2/B2) leave
-// nothing to pipeline; EVDT and EVDTFullGrid run on one lane.
+// order). Lanes (plain std::thread) own COLUMNS: lane t runs every pass of every slice on its
+// x-range, whose previous rows and previous slices are its own; only the in-row chain crosses
+// into the next lane's range, one vector per row and pass, published with an atomic progress
+// counter. Every voxel therefore sees exactly the values of the serial order: results are
+// bit-identical for any lane count (T = the TBB arena's concurrency, capped by
+// tbb::global_control). The lanes wait for each other about once per slice (where the x order
+// of the passes reverses); lanes are real threads, not TBB tasks, so the waits cannot deadlock.
+// EVDT's row-interleaved passes (F2/B2) leave nothing to split; EVDT and EVDTFullGrid run on one
+// lane. Measured in docs/benchmarks.md ("Distance transforms on dense volumes").
 #pragma once
 
 #include <levelforge/DenseVolume.h>
@@ -101,7 +108,7 @@ const char* vectorTransformMethodName(VectorTransformMethod method);
 struct VectorTransformOptions
 {
     VectorTransformMethod method = VectorTransformMethod::VCVDT8;
-    /// Optional interruption (checked once per slice and pass group); not owned.
+    /// Optional interruption (checked at the start of every slice of each sweep); not owned.
     openvdb::util::NullInterrupter* interrupter = nullptr;
     /// Wavefront lanes (threads). 1 (default) = serial; 0 = automatic (the TBB concurrency,
     /// capped by tbb::global_control, when a slice has at least 128 x 128 voxels, else 1);
