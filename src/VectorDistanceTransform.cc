@@ -423,6 +423,62 @@ LEVELFORGE_AI void chainStep(float* c, const float* yzg, int l, Carry& p, float 
     }
 }
 
+/// The chain through one group (w voxels at c, their Y*Y + Z*Z at yzg) in x order xs.
+template<bool Unit>
+LEVELFORGE_AI void chainGroup(float* c, const float* yzg, const int w, const int xs, Carry& p, const float ox,
+                              const float sx)
+{
+    if (w == kGroup) {
+        // Most groups keep every voxel (about 90 % on a sphere): test all 8 steps at once on
+        // the assumption that no voxel changes, each candidate coming from the previous
+        // voxel's current vector (the first from the carry). If none wins, the assumption
+        // holds and the chain leaves the group as it is; otherwise run the steps one by one.
+        // Same operations, so the same comparisons as the scalar steps.
+        const v8f X = load8(c), D = load8(c + 24), YZ = load8(yzg);
+        const v8f px = v8f{} + p.x, pyz = v8f{} + p.yz;
+        const v8f cxs = xs > 0 ? __builtin_shuffle(X, px, v8i{8, 0, 1, 2, 3, 4, 5, 6})
+                               : __builtin_shuffle(X, px, v8i{1, 2, 3, 4, 5, 6, 7, 8});
+        const v8f yzs = xs > 0 ? __builtin_shuffle(YZ, pyz, v8i{8, 0, 1, 2, 3, 4, 5, 6})
+                               : __builtin_shuffle(YZ, pyz, v8i{1, 2, 3, 4, 5, 6, 7, 8});
+        const v8f cx = cxs + ox;
+        const v8f Xs = Unit ? cx : cx * sx;
+        const v8i win = (Xs * Xs + yzs) < D;
+        uint64_t bits[4];
+        std::memcpy(bits, &win, sizeof(bits));
+        if ((bits[0] | bits[1] | bits[2] | bits[3]) == 0) {
+            const int last = xs > 0 ? kGroup - 1 : 0;
+            p.x = c[last];
+            p.y = c[kGroup + last];
+            p.z = c[2 * kGroup + last];
+            p.yz = yzg[last];
+        } else if (xs > 0) {
+            for (int l = 0; l < kGroup; ++l) chainStep<Unit, kGroup>(c, yzg, l, p, ox, sx);
+        } else {
+            for (int l = kGroup - 1; l >= 0; --l) chainStep<Unit, kGroup>(c, yzg, l, p, ox, sx);
+        }
+    } else {
+        // The short last group of a row: stride w. Rare, so the generic form.
+        for (int k = 0; k < w; ++k) {
+            const int l = xs > 0 ? k : w - 1 - k;
+            const float cx = p.x + ox;
+            const float X = Unit ? cx : cx * sx;
+            const float d2 = X * X + p.yz;
+            if (d2 < c[3 * w + l]) {
+                c[l] = cx;
+                c[w + l] = p.y;
+                c[2 * w + l] = p.z;
+                c[3 * w + l] = d2;
+                p.x = cx;
+            } else {
+                p.x = c[l];
+                p.y = c[w + l];
+                p.z = c[2 * w + l];
+                p.yz = yzg[l];
+            }
+        }
+    }
+}
+
 /// The sequential part of a pass on groups [g0, g1) of one row, in x order xs (+1 / -1),
 /// starting from carry p (the voxel before the span in pass order, or +inf) and leaving the
 /// span's last voxel in it.
@@ -433,41 +489,12 @@ LEVELFORGE_AI void rowChain(float* row, const float* yz, int g0, int g1, int nx,
     Carry p = carry; // a local copy stays in registers (the row may alias `carry`)
     const int gl = g1 - 1;
     const int wl = groupWidth(gl, nx);
-    auto group = [&](int g) {
-        float* c = row + size_t(g) * kGroup * 4;
-        const float* yzg = yz + size_t(g) * kGroup;
-        const int w = g == gl ? wl : kGroup;
-        if (w == kGroup) {
-            if (xs > 0)
-                for (int l = 0; l < kGroup; ++l) chainStep<Unit, kGroup>(c, yzg, l, p, ox, sx);
-            else
-                for (int l = kGroup - 1; l >= 0; --l) chainStep<Unit, kGroup>(c, yzg, l, p, ox, sx);
-        } else {
-            // The short last group of a row: stride w. Rare, so the generic form.
-            for (int k = 0; k < w; ++k) {
-                const int l = xs > 0 ? k : w - 1 - k;
-                const float cx = p.x + ox;
-                const float X = Unit ? cx : cx * sx;
-                const float d2 = X * X + p.yz;
-                if (d2 < c[3 * w + l]) {
-                    c[l] = cx;
-                    c[w + l] = p.y;
-                    c[2 * w + l] = p.z;
-                    c[3 * w + l] = d2;
-                    p.x = cx;
-                } else {
-                    p.x = c[l];
-                    p.y = c[w + l];
-                    p.z = c[2 * w + l];
-                    p.yz = yzg[l];
-                }
-            }
-        }
-    };
     if (xs > 0)
-        for (int g = g0; g < g1; ++g) group(g);
+        for (int g = g0; g < g1; ++g)
+            chainGroup<Unit>(row + size_t(g) * kGroup * 4, yz + size_t(g) * kGroup, g == gl ? wl : kGroup, 1, p, ox, sx);
     else
-        for (int g = g1 - 1; g >= g0; --g) group(g);
+        for (int g = g1 - 1; g >= g0; --g)
+            chainGroup<Unit>(row + size_t(g) * kGroup * 4, yz + size_t(g) * kGroup, g == gl ? wl : kGroup, -1, p, ox, sx);
     carry = p;
 }
 #pragma GCC diagnostic pop
