@@ -220,6 +220,8 @@ struct Spacing
 constexpr int kGroup = 8;
 /// Fewest groups (of 8 columns) a lane gets; narrower volumes use fewer lanes.
 constexpr int kMinGroupsPerLane = 4;
+/// Rows a lane finishes between two publications of its progress.
+constexpr int kPublishRows = 16;
 /// Rows the first pass of a slice prefetches ahead.
 constexpr int kPrefetchRows = 4;
 
@@ -311,14 +313,23 @@ LEVELFORGE_AI void store8(float* p, const v8f& v) { std::memcpy(p, &v, sizeof(v)
 /// One candidate for 8 voxels at once: (nx, ny, nz) replaces (X, Y, Z, D) where its d2 is
 /// strictly smaller. The same single-precision operations as the scalar step (no FMA), so
 /// every lane gets the bits the scalar code would.
+/// Whether any lane of a comparison result is set.
+LEVELFORGE_AI bool anyLane(const v8i& m)
+{
+    uint64_t bits[4];
+    std::memcpy(bits, &m, sizeof(bits));
+    return (bits[0] | bits[1] | bits[2] | bits[3]) != 0;
+}
+
 template<bool Unit>
-LEVELFORGE_AI void tryCandidate8(v8f& X, v8f& Y, v8f& Z, v8f& D, v8f& YZ, const v8f& nx, const v8f& ny,
-                                 const v8f& nz, const Spacing& s)
+LEVELFORGE_AI void tryCandidate8(v8f& X, v8f& Y, v8f& Z, v8f& D, v8f& YZ, v8i& changed, const v8f& nx,
+                                 const v8f& ny, const v8f& nz, const Spacing& s)
 {
     const v8f Xs = Unit ? nx : nx * s.sx, Ys = Unit ? ny : ny * s.sy, Zs = Unit ? nz : nz * s.sz;
     const v8f nyz = Ys * Ys + Zs * Zs;
     const v8f d2 = Xs * Xs + nyz;
     const v8i m = d2 < D;
+    changed |= m;
     X = m ? nx : X;
     Y = m ? ny : Y;
     Z = m ? nz : Z;
@@ -358,19 +369,24 @@ LEVELFORGE_AI void rowCandidates(float* row, const float* prevRow, const float* 
             v8f X = load8(c), Y = load8(c + 8), Z = load8(c + 16), D = load8(c + 24);
             const v8f Ys = Unit ? Y : Y * s.sy, Zs = Unit ? Z : Z * s.sz;
             v8f YZ = Ys * Ys + Zs * Zs;
+            v8i changed = v8i{};
             if constexpr (Vert) {
                 const float* n = vertRow + off;
-                tryCandidate8<Unit>(X, Y, Z, D, YZ, load8(n), load8(n + 8), load8(n + 16) + oz, s);
+                tryCandidate8<Unit>(X, Y, Z, D, YZ, changed, load8(n), load8(n + 8), load8(n + 16) + oz, s);
             }
             if constexpr (Row) {
                 const float* n = prevRow + off;
-                tryCandidate8<Unit>(X, Y, Z, D, YZ, load8(n), load8(n + 8) + oy, load8(n + 16), s);
+                tryCandidate8<Unit>(X, Y, Z, D, YZ, changed, load8(n), load8(n + 8) + oy, load8(n + 16), s);
             }
             if constexpr (Vert || Row) {
-                store8(c, X);
-                store8(c + 8, Y);
-                store8(c + 16, Z);
-                store8(c + 24, D);
+                // Most groups keep their vectors: writing only changed groups keeps the lines
+                // clean (no write-back, no line shared with the next lane's range dirtied).
+                if (anyLane(changed)) {
+                    store8(c, X);
+                    store8(c + 8, Y);
+                    store8(c + 16, Z);
+                    store8(c + 24, D);
+                }
             }
             store8(yzg, YZ);
         } else {
@@ -443,9 +459,7 @@ LEVELFORGE_AI void chainGroup(float* c, const float* yzg, const int w, const int
         const v8f cx = cxs + ox;
         const v8f Xs = Unit ? cx : cx * sx;
         const v8i win = (Xs * Xs + yzs) < D;
-        uint64_t bits[4];
-        std::memcpy(bits, &win, sizeof(bits));
-        if ((bits[0] | bits[1] | bits[2] | bits[3]) == 0) {
+        if (!anyLane(win)) {
             const int last = xs > 0 ? kGroup - 1 : 0;
             p.x = c[last];
             p.y = c[kGroup + last];
@@ -727,13 +741,15 @@ void runTwoSlices(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb:
 /// once per slice (where a pass reverses the x order), briefly when the cores are free; when
 /// they are not, the lane waited for is not running and spinning only delays it, so the wait
 /// yields early.
-bool waitUntil(const std::atomic<int64_t>& value, int64_t need, const std::atomic<bool>& stop)
+bool waitUntil(const std::atomic<int64_t>& value, int64_t need, const std::atomic<bool>& stop, int64_t* seen = nullptr)
 {
-    for (int spin = 0; value.load(std::memory_order_acquire) < need; ++spin) {
+    int64_t v;
+    for (int spin = 0; (v = value.load(std::memory_order_acquire)) < need; ++spin) {
         if (stop.load(std::memory_order_relaxed)) return false;
         if (spin < 32) LEVELFORGE_CPU_RELAX();
         else std::this_thread::yield();
     }
+    if (seen) *seen = v;
     return true;
 }
 
@@ -825,6 +841,7 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
             const size_t slot = size_t(si % kCarryRing) * size_t(ny);
             Carry* mySlot = hasDown ? carries.data() + size_t(t) * kCarryRing * size_t(ny) + slot : nullptr;
             const Carry* upSlot = hasUp ? carries.data() + size_t(up) * kCarryRing * size_t(ny) + slot : nullptr;
+            int64_t upSeen = 0; // the upstream progress last read (it only grows)
             for (int r = 0; r < ny; ++r) {
                 const int y = p.yOrder > 0 ? r : ny - 1 - r;
                 if (st.sliceStart && r + kPrefetchRows < ny) {
@@ -842,7 +859,8 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
                 if (lastVertRead) reorderRow(vz, y, false);
                 Carry carry;
                 if (hasUp) {
-                    if (!waitUntil(progress[up].value, int64_t(si) * ny + r + 1, stop)) return;
+                    const int64_t need = int64_t(si) * ny + r + 1;
+                    if (upSeen < need && !waitUntil(progress[up].value, need, stop, &upSeen)) return;
                     carry = upSlot[r];
                 }
                 k.chain(task, yz.data(), carry, k.s, k.unit);
@@ -854,7 +872,10 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
                     k.candidates(rt, yz.data(), k.s, k.unit);
                     k.chain(rt, yz.data(), c, k.s, k.unit);
                 }
-                if (lanes > 1) progress[t].value.store(int64_t(si) * ny + r + 1, std::memory_order_release);
+                // Published every few rows: a counter written on every row would bounce its cache
+                // line between the cores once per row, which costs as much as the row itself.
+                if (lanes > 1 && ((r + 1) % kPublishRows == 0 || r + 1 == ny))
+                    progress[t].value.store(int64_t(si) * ny + r + 1, std::memory_order_release);
             }
         }
         const int lastZ = stages.back().z;

@@ -85,8 +85,11 @@ struct ChamferOptions
 {
     /// Optional interruption (checked once per slice); not owned.
     openvdb::util::NullInterrupter* interrupter = nullptr;
-    /// Wavefront lanes: 1 (default) = serial, 0 = automatic, n > 1 = at most n (see
-    /// VectorTransformOptions::threads). The result does not depend on it.
+    /// Wavefront lanes: 1 (default) = serial, 0 = automatic (the TBB concurrency, capped by
+    /// tbb::global_control, when a slice has at least 128 x 128 voxels, else 1), n > 1 = at most
+    /// n. The row wavefront synchronises once per row chunk and only pays on idle cores
+    /// (docs/distance-transforms.md, "Parallelism and determinism"). The result does not depend
+    /// on it.
     int threads = 1;
 };
 

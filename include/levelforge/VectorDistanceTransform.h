@@ -110,11 +110,13 @@ struct VectorTransformOptions
     VectorTransformMethod method = VectorTransformMethod::VCVDT8;
     /// Optional interruption (checked at the start of every slice of each sweep); not owned.
     openvdb::util::NullInterrupter* interrupter = nullptr;
-    /// Wavefront lanes (threads). 1 (default) = serial; 0 = automatic (the TBB concurrency,
-    /// capped by tbb::global_control, when a slice has at least 128 x 128 voxels, else 1);
-    /// n > 1 = at most n. The result does not depend on it. Serial is the default because the
-    /// wavefront, which synchronises once per row chunk, only pays on otherwise idle cores: on
-    /// our shared 2-core machine it was 3x slower than serial (docs/benchmarks.md, "Distance transforms on dense volumes").
+    /// Lanes (threads). 1 (default) = serial; 0 = automatic (the TBB concurrency, capped by
+    /// tbb::global_control, when a slice has at least 128 x 128 voxels, else 1); n > 1 = at most
+    /// n (and at most one lane per 32 columns). The result does not depend on it. Serial is the
+    /// default because the gain is modest and not guaranteed: the passes are memory-bound at
+    /// 16 bytes per voxel, so 2 lanes ran 1.1-1.3x faster than 1 on idle cores of our 2-core
+    /// machine and up to 1.2x slower when another process held a core (docs/benchmarks.md,
+    /// "Distance transforms on dense volumes").
     int threads = 1;
 };
 
@@ -125,7 +127,7 @@ struct VectorTransformStats
     uint64_t seeds = 0;        ///< voxels with a finite vector on input
     uint64_t unreached = 0;    ///< voxels still +inf on output (no seed at all)
     int passesPerVoxel = 0;    ///< in-slice passes that visit each voxel (4, 6 or 8)
-    int lanes = 1;             ///< threads that ran the wavefront
+    int lanes = 1;             ///< lanes (threads) that ran the passes
     double voxelsPerSecond() const { return seconds > 0 ? double(voxels) / seconds : 0.0; }
 };
 
