@@ -95,8 +95,10 @@ void cookExpand(OperatorArgs& args)
            << " shell voxels (closest points estimated from phi and grad phi), "
            << withThousands(st.unreachedVoxels) << " unreached\n";
     } else {
-        os << "  sweeps: " << st.iterations << " rounds of 8, last max change "
-           << fmt("%.3g", st.maxChange) << " voxels" << (st.converged ? "" : " (not converged)")
+        os << "  sweeps: " << withThousands(st.leafUpdates) << " leaf passes (at most "
+           << st.iterations << " per leaf), " << withThousands(st.voxelUpdates) << " voxel updates, "
+           << (st.converged ? "largest change not passed on " + fmt("%.3g", st.maxChange) + " voxels"
+                            : std::string("not converged"))
            << "\n";
     }
     os << "  time: " << fmt("%.2f", seconds) << " s expansion (topology "
@@ -105,7 +107,7 @@ void cookExpand(OperatorArgs& args)
        << " s total\n";
     if (!vector && !st.converged) {
         args.err() << "levelforge: warning: the sweeps did not converge to " << opt.tolerance
-                   << " voxels in " << opt.maxIterations << " rounds\n";
+                   << " voxels in " << opt.maxIterations << " passes per leaf\n";
     }
 }
 
@@ -158,12 +160,13 @@ LEVELFORGE_REGISTER_OPERATOR(
                              {"sweep", "vector"})
                    .defaultValue("sweep"))
         .param(Param::floating("tolerance", "Tolerance",
-                               "Stop when a round of 8 sweeps changes no value by more than "
-                               "this, in voxels")
+                               "Changes of at most this (voxels) are not passed on to the "
+                               "neighbours; the sweeps stop when no larger change is pending")
                    .defaultValue(1e-4)
                    .range(0.0, 1.0, Bound::Exclusive, Bound::Inclusive))
         .param(Param::integer("max-iterations", "Max Iterations",
-                              "At most this many rounds of 8 sweeps")
+                              "Sweep each leaf node (until it has no dirty voxel) at most this "
+                              "many times")
                    .defaultValue(50)
                    .range(1, 10000))
         .param(Param::string("grid-name", "Grid Name",

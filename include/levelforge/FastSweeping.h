@@ -9,28 +9,36 @@
 // (magnitudes, on each side of the surface), taking φ_new = min(φ_old, solution).
 //
 // Sparse: the sweeps visit only the active voxels of the candidate VDB tree, never a dense box.
-// A sweep in ordering s = (sx, sy, sz) visits the leaf nodes (8^3 voxels) bucket by bucket along
-// the leaf hyperplanes sx·I + sy·J + sz·K = const (I, J, K: leaf coordinates); inside a leaf the
-// voxels go in ordering s. Two leaves of one hyperplane never share a face, and the Godunov
-// stencil only reads face neighbours, so the leaves of one bucket are swept in parallel (TBB)
-// and every voxel sees exactly the values a serial Gauss–Seidel sweep in that leaf order would
-// give it: the result is bit-identical for any number of threads.
+// Schedule (leaf-level marching, in the spirit of Chacon & Vladimirsky's heap-cell method): a
+// leaf node (8^3 voxels) is processed when it has pending input — new values on a neighbouring
+// face, or its own fixed values at the start — and processing it means Gauss–Seidel sweeps of
+// its voxels until none of them is dirty (below). The first ordering runs along each axis away
+// from the halo face with the smaller minimum; each next one reverses the axes along which a
+// change marked an already visited voxel. Leaves are taken roughly in order of their smallest
+// pending input value (the key): each step processes the leaves whose key is below the
+// smallest key + 8 voxels, skipping a leaf while a face neighbour has a smaller key, until none
+// is left. Within a step the leaves go in two phases by the parity of I + J + K (I, J, K: leaf
+// coordinates); two leaves of one parity never share a face and the Godunov stencil only reads
+// face neighbours, so each phase processes its leaves in parallel (TBB), every leaf seeing the
+// same values whatever the thread count, and the phases, steps and keys are computed serially:
+// the result is bit-identical for any number of threads. Any such order of Gauss–Seidel
+// min-updates converges to the same discrete fixed point (up to the tolerance below).
 //
 // Work saved (none of it changes what a voxel's update computes):
 // - per-voxel dirty bits: a voxel is re-evaluated only when a face neighbour changed since its
-//   last evaluation, and a change marks only the neighbours whose magnitude exceeds the new
-//   value (the upwind solution of a neighbour at or below it cannot use it). Changes of at most
-//   the tolerance are not passed on (rounding creep would otherwise ripple through the band;
-//   measured effect on the error columns: none at 4 decimals).
-// - leaf skipping: a leaf whose last sweep changed nothing by more than the tolerance is swept
-//   again only when a face neighbour changed by more than the tolerance.
+//   last evaluation in a way its update can see: a change to value u marks a neighbour q only
+//   when u is below |φ_q| and below q's other neighbour on the same axis (q's upwind value on
+//   that axis is the smaller of the two, so otherwise it stays the same bit for bit); leaves with
+//   both signs mark every neighbour. Changes of at most the tolerance are not passed on
+//   (rounding creep would otherwise ripple through the band; measured effect on the error
+//   columns: none at 4 decimals).
 // - capped values: a voxel whose solution is not below the kept width on its side (see below)
 //   stays unreached — it would be trimmed anyway, and no voxel below the cap depends on it (the
 //   Godunov solution only reads neighbour values below itself).
 // - single-precision update with the discriminants written as sums of squared differences
 //   (2h² − (a1 − a0)², 3h² − Σ (ai − aj)²), so nothing cancels.
-// Iterations (rounds of 8 sweeps) stop when a whole round changes no value by more than the
-// tolerance.
+// The sweeps stop when no leaf has pending input (converged), or when only leaves already
+// processed maxIterations times have.
 //
 // Topology (Euclidean-complete): a voxel whose exact distance d is below the target width w
 // lies within Euclidean distance R = w - w0 + √3 (voxels) of a voxel of the input band of
@@ -125,9 +133,11 @@ struct ExpandLevelSetOptions
     /// background / voxel size.
     double inputExteriorWidth = 0.0;
     double inputInteriorWidth = 0.0;
-    /// Stop when a round of 8 sweeps changes no value by more than this, in voxels (> 0).
+    /// Changes of at most this (voxels, > 0) are not passed on to the neighbours; the sweeps
+    /// stop when no change above it is pending.
     double tolerance = 1e-4;
-    /// At most this many rounds of 8 sweeps (>= 1).
+    /// Sweep: each leaf node is processed (swept until it has no dirty voxel) at most this many
+    /// times (>= 1); typically up to 4–6 times.
     int maxIterations = 50;
     /// Refuse (ResourceLimitError) to build grids with more active voxels than this; 0 = no limit.
     uint64_t maxVoxels = 2'000'000'000ull;
@@ -145,11 +155,11 @@ struct ExpandLevelSetStats
     uint64_t frozenVoxels = 0;       ///< input band voxels kept as the boundary condition
     uint64_t candidateVoxels = 0;    ///< active voxels of the swept domain (whole leaves for Sweep)
     uint64_t activeVoxels = 0;       ///< active voxels of the result
-    uint64_t leafUpdates = 0;        ///< leaf-node sweeps performed (skipped leaves not counted)
+    uint64_t leafUpdates = 0;        ///< leaf-node passes performed (each sweeps the leaf until it has no dirty voxel)
     uint64_t voxelUpdates = 0;       ///< Godunov updates evaluated (voxels re-evaluated only when a neighbour changed)
-    int iterations = 0;              ///< rounds of 8 sweeps
-    double maxChange = 0.0;          ///< largest change during the last round, voxels
-    bool converged = false;          ///< last round changed nothing by more than the tolerance
+    int iterations = 0;              ///< the most passes over any one leaf node
+    double maxChange = 0.0;          ///< converged: the largest change not passed on to the neighbours (<= tolerance), voxels; else infinity
+    bool converged = false;          ///< no change above the tolerance is left pending
     double secondsTopology = 0, secondsSweep = 0, secondsFinish = 0;
     ExpansionMethod method = ExpansionMethod::Sweep;
     uint64_t estimatedVectors = 0;   ///< Vector: shell vectors estimated from φ and ∇φ
