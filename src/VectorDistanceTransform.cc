@@ -418,23 +418,24 @@ struct Carry
     float x = kInf, y = kInf, z = kInf, yz = kInf;
 };
 
-/// One in-row step: the previous voxel's vector moved by ox against the voxel's current one.
-template<bool Unit, int W>
-LEVELFORGE_AI void chainStep(float* c, const float* yzg, int l, Carry& p, float ox, float sx)
+/// One in-row step on voxel l of a group of width w: the previous voxel's vector moved by ox
+/// against the voxel's current one.
+template<bool Unit>
+LEVELFORGE_AI void chainStep(float* c, const float* yzg, int l, int w, Carry& p, float ox, float sx)
 {
     const float cx = p.x + ox;
     const float X = Unit ? cx : cx * sx;
     const float d2 = X * X + p.yz;
-    if (d2 < c[3 * W + l]) {
+    if (d2 < c[3 * w + l]) {
         c[l] = cx;
-        c[W + l] = p.y;
-        c[2 * W + l] = p.z;
-        c[3 * W + l] = d2;
+        c[w + l] = p.y;
+        c[2 * w + l] = p.z;
+        c[3 * w + l] = d2;
         p.x = cx;
     } else {
         p.x = c[l];
-        p.y = c[W + l];
-        p.z = c[2 * W + l];
+        p.y = c[w + l];
+        p.z = c[2 * w + l];
         p.yz = yzg[l];
     }
 }
@@ -466,30 +467,13 @@ LEVELFORGE_AI void chainGroup(float* c, const float* yzg, const int w, const int
             p.z = c[2 * kGroup + last];
             p.yz = yzg[last];
         } else if (xs > 0) {
-            for (int l = 0; l < kGroup; ++l) chainStep<Unit, kGroup>(c, yzg, l, p, ox, sx);
+            for (int l = 0; l < kGroup; ++l) chainStep<Unit>(c, yzg, l, kGroup, p, ox, sx);
         } else {
-            for (int l = kGroup - 1; l >= 0; --l) chainStep<Unit, kGroup>(c, yzg, l, p, ox, sx);
+            for (int l = kGroup - 1; l >= 0; --l) chainStep<Unit>(c, yzg, l, kGroup, p, ox, sx);
         }
     } else {
-        // The short last group of a row: stride w. Rare, so the generic form.
-        for (int k = 0; k < w; ++k) {
-            const int l = xs > 0 ? k : w - 1 - k;
-            const float cx = p.x + ox;
-            const float X = Unit ? cx : cx * sx;
-            const float d2 = X * X + p.yz;
-            if (d2 < c[3 * w + l]) {
-                c[l] = cx;
-                c[w + l] = p.y;
-                c[2 * w + l] = p.z;
-                c[3 * w + l] = d2;
-                p.x = cx;
-            } else {
-                p.x = c[l];
-                p.y = c[w + l];
-                p.z = c[2 * w + l];
-                p.yz = yzg[l];
-            }
-        }
+        // The short last group of a row (stride w): one step at a time.
+        for (int k = 0; k < w; ++k) chainStep<Unit>(c, yzg, xs > 0 ? k : w - 1 - k, w, p, ox, sx);
     }
 }
 

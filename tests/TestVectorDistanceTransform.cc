@@ -62,6 +62,38 @@ ClosestVector seedVector(const openvdb::Vec3d& v, const openvdb::Vec3d& spacing)
     return ClosestVector{x, y, z, vectorLengthSquared(x, y, z, openvdb::Vec3f(spacing))};
 }
 
+/// One seed in every `every` voxels on average, at random voxels: binary (zero vectors) or
+/// fractional (sub-voxel offsets in [-0.5, 0.5)).
+VectorVolume randomSeeds(const openvdb::Coord& dims, const openvdb::Vec3d& sp, bool fractional, size_t every,
+                         std::mt19937& rng)
+{
+    std::uniform_real_distribution<float> frac(-0.5f, 0.5f);
+    VectorVolume seeds(dims, ClosestVector{kInf, kInf, kInf, kInf}, sp);
+    std::uniform_int_distribution<size_t> pick(0, seeds.data.size() - 1);
+    const int n = std::max<int>(1, int(seeds.data.size() / every));
+    for (int i = 0; i < n; ++i) {
+        ClosestVector& c = seeds.data[pick(rng)];
+        if (fractional) c = seedVector(openvdb::Vec3d(frac(rng), frac(rng), frac(rng)), sp);
+        else c = ClosestVector{0.f, 0.f, 0.f, 0.f};
+    }
+    return seeds;
+}
+
+/// Transforms v in place with `lanes` lanes, in an arena (and global_control) of that size.
+void transformWithLanes(VectorVolume& v, VectorTransformMethod m, int lanes, VectorTransformStats* st = nullptr,
+                        openvdb::util::NullInterrupter* interrupter = nullptr)
+{
+    tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(lanes));
+    tbb::task_arena arena(lanes);
+    arena.execute([&] {
+        VectorTransformOptions o;
+        o.method = m;
+        o.threads = lanes;
+        o.interrupter = interrupter;
+        vectorDistanceTransform(v, o, st);
+    });
+}
+
 } // namespace
 
 TEST(VectorDistanceTransform, InitAndLength)
@@ -307,16 +339,9 @@ TEST(VectorDistanceTransform, BitIdenticalForAnyThreadCount)
             EXPECT_EQ(st.lanes, 1);
         }
         for (int lanes : {2, 3}) { // more lanes than cores only makes the spin-waits slow
-            tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(lanes));
-            tbb::task_arena arena(lanes);
             VectorVolume v = seeds;
             VectorTransformStats st;
-            arena.execute([&] {
-                VectorTransformOptions o;
-                o.method = m;
-                o.threads = lanes;
-                vectorDistanceTransform(v, o, &st);
-            });
+            transformWithLanes(v, m, lanes, &st);
             EXPECT_EQ(st.lanes, lanes);
             ASSERT_EQ(0, std::memcmp(v.data.data(), ref.data.data(), ref.data.size() * sizeof(ClosestVector)))
                 << vectorTransformMethodName(m) << " lanes " << lanes;
@@ -331,7 +356,6 @@ TEST(VectorDistanceTransform, Avx2KernelMatchesTheBaselineBitForBit)
     // fractional seeds, 1..3 lanes. Without AVX2 this compares the baseline with itself (and
     // with its wavefront).
     std::mt19937 rng(2026);
-    std::uniform_real_distribution<float> frac(-0.5f, 0.5f);
     const openvdb::Coord dimsList[] = {openvdb::Coord(1, 1, 1),   openvdb::Coord(5, 3, 4),   openvdb::Coord(8, 8, 8),
                                        openvdb::Coord(9, 17, 5),  openvdb::Coord(23, 7, 11), openvdb::Coord(40, 33, 9),
                                        openvdb::Coord(131, 19, 6)};
@@ -339,14 +363,7 @@ TEST(VectorDistanceTransform, Avx2KernelMatchesTheBaselineBitForBit)
     for (const auto& dims : dimsList)
         for (const auto& sp : spacings)
             for (bool fractional : {false, true}) {
-                VectorVolume seeds(dims, ClosestVector{kInf, kInf, kInf, kInf}, sp);
-                std::uniform_int_distribution<size_t> pick(0, seeds.data.size() - 1);
-                const int n = std::max<int>(1, int(seeds.data.size() / 97));
-                for (int i = 0; i < n; ++i) {
-                    ClosestVector& c = seeds.data[pick(rng)];
-                    if (fractional) c = seedVector(openvdb::Vec3d(frac(rng), frac(rng), frac(rng)), sp);
-                    else c = ClosestVector{0.f, 0.f, 0.f, 0.f};
-                }
+                const VectorVolume seeds = randomSeeds(dims, sp, fractional, 97, rng);
                 for (VectorTransformMethod m : kMethods) {
                     VectorVolume ref = seeds;
                     vector_transform_internal::setAvx2KernelEnabled(false);
@@ -358,15 +375,8 @@ TEST(VectorDistanceTransform, Avx2KernelMatchesTheBaselineBitForBit)
                     }
                     vector_transform_internal::setAvx2KernelEnabled(true);
                     for (int lanes : {1, 2, 3}) {
-                        tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(lanes));
-                        tbb::task_arena arena(lanes);
                         VectorVolume v = seeds;
-                        arena.execute([&] {
-                            VectorTransformOptions o;
-                            o.method = m;
-                            o.threads = lanes;
-                            vectorDistanceTransform(v, o);
-                        });
+                        transformWithLanes(v, m, lanes);
                         ASSERT_EQ(0, std::memcmp(v.data.data(), ref.data.data(), ref.data.size() * sizeof(ClosestVector)))
                             << vectorTransformMethodName(m) << " dims " << dims << " spacing " << sp << " fractional "
                             << fractional << " lanes " << lanes
@@ -440,7 +450,6 @@ TEST(VectorDistanceTransform, MatchesALiteralReadingOfThePassTables)
     // the bits of the literal raster order, for every method, row widths around the group size
     // of 8, fractional seeds, anisotropic spacing and 1..3 lanes.
     std::mt19937 rng(7);
-    std::uniform_real_distribution<float> frac(-0.5f, 0.5f);
     const openvdb::Coord dimsList[] = {openvdb::Coord(1, 1, 1),  openvdb::Coord(7, 5, 4),   openvdb::Coord(8, 3, 3),
                                        openvdb::Coord(9, 17, 5), openvdb::Coord(35, 6, 7),  openvdb::Coord(100, 9, 12),
                                        openvdb::Coord(131, 19, 6)};
@@ -448,26 +457,12 @@ TEST(VectorDistanceTransform, MatchesALiteralReadingOfThePassTables)
     for (const auto& dims : dimsList)
         for (const auto& sp : spacings)
             for (bool fractional : {false, true}) {
-                VectorVolume seeds(dims, ClosestVector{kInf, kInf, kInf, kInf}, sp);
-                std::uniform_int_distribution<size_t> pick(0, seeds.data.size() - 1);
-                const int n = std::max<int>(1, int(seeds.data.size() / 61));
-                for (int i = 0; i < n; ++i) {
-                    ClosestVector& c = seeds.data[pick(rng)];
-                    if (fractional) c = seedVector(openvdb::Vec3d(frac(rng), frac(rng), frac(rng)), sp);
-                    else c = ClosestVector{0.f, 0.f, 0.f, 0.f};
-                }
+                const VectorVolume seeds = randomSeeds(dims, sp, fractional, 61, rng);
                 for (VectorTransformMethod m : kMethods) {
                     const VectorVolume ref = referenceTransform(seeds, m);
                     for (int lanes : {1, 2, 3}) {
-                        tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(lanes));
-                        tbb::task_arena arena(lanes);
                         VectorVolume v = seeds;
-                        arena.execute([&] {
-                            VectorTransformOptions o;
-                            o.method = m;
-                            o.threads = lanes;
-                            vectorDistanceTransform(v, o);
-                        });
+                        transformWithLanes(v, m, lanes);
                         ASSERT_EQ(0, std::memcmp(v.data.data(), ref.data.data(), ref.data.size() * sizeof(ClosestVector)))
                             << vectorTransformMethodName(m) << " dims " << dims << " spacing " << sp << " fractional "
                             << fractional << " lanes " << lanes;
@@ -493,18 +488,11 @@ TEST(VectorDistanceTransform, InterruptionLeavesWholeVectors)
     for (VectorTransformMethod m : kMethods)
         for (int at : {2, 5, 15, 20})
             for (int lanes : {1, 2}) {
-                tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(lanes));
-                tbb::task_arena arena(lanes);
                 VectorVolume v = seeds;
                 StopAt stop;
                 stop.at = at;
-                arena.execute([&] {
-                    VectorTransformOptions o;
-                    o.method = m;
-                    o.threads = lanes;
-                    o.interrupter = &stop;
-                    EXPECT_THROW(vectorDistanceTransform(v, o), InterruptedError) << vectorTransformMethodName(m);
-                });
+                EXPECT_THROW(transformWithLanes(v, m, lanes, nullptr, &stop), InterruptedError)
+                    << vectorTransformMethodName(m);
                 size_t finite = 0;
                 for (const ClosestVector& c : v.data) {
                     if (std::isinf(c.d2)) {
