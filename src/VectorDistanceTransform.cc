@@ -530,8 +530,9 @@ struct RowTask
     int nx;
 };
 
+/// The element-wise candidates of a row task (the pass shape picks the kernel).
 template<bool Unit>
-LEVELFORGE_AI void runRowTaskT(const RowTask& t, float* yz, Carry& carry, const Spacing& s)
+LEVELFORGE_AI void rowTaskCandidates(const RowTask& t, float* yz, const Spacing& s)
 {
     if (t.vertRow && t.prevRow)
         rowCandidates<true, true, Unit>(t.row, t.prevRow, t.vertRow, yz, t.g0, t.g1, t.nx, t.oy, t.oz, s);
@@ -543,23 +544,16 @@ LEVELFORGE_AI void runRowTaskT(const RowTask& t, float* yz, Carry& carry, const 
         rowCandidates<false, false, Unit>(t.row, t.prevRow, t.vertRow, yz, t.g0, t.g1, t.nx, t.oy, t.oz, s);
 }
 
-template<bool Unit>
-LEVELFORGE_AI void runRowChainT(const RowTask& t, const float* yz, Carry& carry, const Spacing& s)
-{
-    rowChain<Unit>(t.row, yz, t.g0, t.g1, t.nx, t.xs, carry, s);
-}
-
 void rowCandidatesBase(const RowTask& t, float* yz, const Spacing& s, bool unit)
 {
-    Carry unused;
-    if (unit) runRowTaskT<true>(t, yz, unused, s);
-    else runRowTaskT<false>(t, yz, unused, s);
+    if (unit) rowTaskCandidates<true>(t, yz, s);
+    else rowTaskCandidates<false>(t, yz, s);
 }
 
 void rowChainBase(const RowTask& t, const float* yz, Carry& carry, const Spacing& s, bool unit)
 {
-    if (unit) runRowChainT<true>(t, yz, carry, s);
-    else runRowChainT<false>(t, yz, carry, s);
+    if (unit) rowChain<true>(t.row, yz, t.g0, t.g1, t.nx, t.xs, carry, s);
+    else rowChain<false>(t.row, yz, t.g0, t.g1, t.nx, t.xs, carry, s);
 }
 
 #if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
@@ -569,16 +563,15 @@ void rowChainBase(const RowTask& t, const float* yz, Carry& carry, const Spacing
 // precision and FMA is NOT enabled (nothing is contracted), so the results are bit-identical.
 __attribute__((target("avx2"))) void rowCandidatesAvx2(const RowTask& t, float* yz, const Spacing& s, bool unit)
 {
-    Carry unused;
-    if (unit) runRowTaskT<true>(t, yz, unused, s);
-    else runRowTaskT<false>(t, yz, unused, s);
+    if (unit) rowTaskCandidates<true>(t, yz, s);
+    else rowTaskCandidates<false>(t, yz, s);
 }
 
 __attribute__((target("avx2"))) void rowChainAvx2(const RowTask& t, const float* yz, Carry& carry, const Spacing& s,
                                                   bool unit)
 {
-    if (unit) runRowChainT<true>(t, yz, carry, s);
-    else runRowChainT<false>(t, yz, carry, s);
+    if (unit) rowChain<true>(t.row, yz, t.g0, t.g1, t.nx, t.xs, carry, s);
+    else rowChain<false>(t.row, yz, t.g0, t.g1, t.nx, t.xs, carry, s);
 }
 
 bool cpuHasAvx2()

@@ -230,12 +230,13 @@ constexpr const MethodDef& methodDef(VectorTransformMethod m)
                                                       : kEVDT;
 }
 
-/// Number of worker lanes the wavefront uses: tbb::this_task_arena::max_concurrency(), capped by
-/// tbb::global_control's max_allowed_parallelism; at least 1.
+/// Number of lanes by default (vector and chamfer transforms):
+/// tbb::this_task_arena::max_concurrency(), capped by tbb::global_control's
+/// max_allowed_parallelism; at least 1.
 int defaultLaneCount();
 
-/// A row-pipelined wavefront (shared by the chamfer and vector transforms). Stages run one
-/// after another, separated by a barrier; within a stage, rows 0..rows-1 (in the stage's own
+/// A row-pipelined wavefront (used by the chamfer transforms; the vector transforms split columns
+/// instead). Stages run one after another, separated by a barrier; within a stage, rows 0..rows-1 (in the stage's own
 /// order) are dealt to `lanes` std::thread lanes round-robin, each row in x-chunks
 /// 0..chunks-1 (in the stage's x order); chunk c of row r starts only after row r-1 has
 /// finished chunk min(c + lookahead, chunks-1). work(stage, row, chunk) must read only what
@@ -254,9 +255,10 @@ int wavefrontChunks(int width, int lanes);
 /// per-pass synchronisation), else 1. Never more than ny.
 int laneCountFor(int nx, int ny, int threads);
 
-/// Whether the per-row kernel runs its AVX2 build on this CPU (x86-64 with AVX2). It is the same
-/// scalar single-precision code in VEX encoding (no FMA), so results are bit-identical to the
-/// baseline x86-64 build; only the instruction count differs.
+/// Whether the per-row kernel runs its AVX2 build on this CPU (x86-64 with AVX2). Both builds
+/// perform the same IEEE single-precision operations (the element-wise candidates 8 lanes wide
+/// with AVX2, as two 4-lane halves in the baseline; no FMA), so results are bit-identical; only
+/// the speed differs.
 bool avx2KernelAvailable();
 
 /// Testing hook: false forces the baseline build of the kernel (process-wide; not for use while
