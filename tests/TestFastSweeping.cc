@@ -1,6 +1,6 @@
 // expandLevelSet (fast sweeping on sparse topology): analytic planes and spheres, the exact
 // reference (first-order error bound, coverage, signs), |∇φ| ≈ 1, frozen band, thread-count
-// determinism, domains (fill interior, bounding box, world units) and bad input.
+// determinism, the convergence report, domains (fill interior, bounding box, world units) and bad input.
 #include "TestUtil.h"
 
 #include <levelforge/ExactReference.h>
@@ -131,6 +131,45 @@ TEST(FastSweeping, TiltedPlaneIsReproduced)
                 const openvdb::Coord c(x, y, z);
                 if (std::abs(phi(c)) < 12 * h) ASSERT_TRUE(oacc.isValueOn(c)) << c;
             }
+}
+
+TEST(FastSweeping, ConvergenceIsReported)
+{
+    // Converged: every change above the tolerance was passed on, so the reported final change
+    // (the largest one not passed on) is at most the tolerance. With one pass per leaf allowed
+    // the sweeps stop early: not converged, maxChange infinite, and since the updates only lower
+    // values towards the fixed point, no value is below the converged one (minus the tolerance).
+    const TriangleMesh sphere = makeIcosphere(Vec3d(0.0), 1.0, 4);
+    auto band = exactBand(sphere, 48);
+    ExpandLevelSetOptions opt;
+    opt.exteriorWidth = opt.interiorWidth = 15;
+    ExpandLevelSetStats full;
+    auto converged = expandLevelSet(*band, opt, &full);
+    EXPECT_TRUE(full.converged);
+    EXPECT_GE(full.iterations, 2);
+    EXPECT_GE(full.maxChange, 0.0);
+    EXPECT_LE(full.maxChange, opt.tolerance);
+    EXPECT_GT(full.leafUpdates, 0u);
+    EXPECT_GE(full.voxelUpdates, full.activeVoxels - full.frozenVoxels);
+
+    opt.maxIterations = 1;
+    ExpandLevelSetStats capped;
+    auto partial = expandLevelSet(*band, opt, &capped);
+    EXPECT_FALSE(capped.converged);
+    EXPECT_EQ(capped.iterations, 1);
+    EXPECT_TRUE(std::isinf(capped.maxChange));
+    EXPECT_LT(capped.voxelUpdates, full.voxelUpdates);
+    const double h = band->voxelSize()[0];
+    auto facc = converged->getConstAccessor();
+    uint64_t common = 0;
+    for (auto it = partial->cbeginValueOn(); it; ++it) {
+        if (!facc.isValueOn(it.getCoord())) continue;
+        ++common;
+        const float f = facc.getValue(it.getCoord());
+        ASSERT_EQ(f < 0, *it < 0) << it.getCoord();
+        ASSERT_GE(std::abs(*it), std::abs(f) - opt.tolerance * h) << it.getCoord();
+    }
+    EXPECT_GT(common, 100000u);
 }
 
 TEST(FastSweeping, SphereWithinFirstOrderBoundOfTheExactReference)
