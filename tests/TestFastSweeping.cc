@@ -1,6 +1,7 @@
 // expandLevelSet (fast sweeping on sparse topology): analytic planes and spheres, the exact
 // reference (first-order error bound, coverage, signs), |∇φ| ≈ 1, frozen band, thread-count
-// determinism, the convergence report, domains (fill interior, bounding box, world units) and bad input.
+// determinism, the convergence report, domains (fill interior, bounding box, world units) and
+// bad input.
 #include "TestUtil.h"
 
 #include <levelforge/ExactReference.h>
