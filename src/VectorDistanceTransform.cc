@@ -113,6 +113,17 @@ struct alignas(64) Progress
     std::atomic<int64_t> value{0};
 };
 
+/// Runs lane(1..lanes-1) on std::threads and lane(0) on the calling thread, then joins them all.
+/// Real threads, not TBB tasks: lanes spin-wait for each other, which must not deadlock.
+void runLanes(int lanes, const std::function<void(int)>& lane)
+{
+    std::vector<std::thread> threads;
+    threads.reserve(size_t(std::max(0, lanes - 1)));
+    for (int t = 1; t < lanes; ++t) threads.emplace_back(lane, t);
+    lane(0);
+    for (auto& th : threads) th.join();
+}
+
 } // namespace
 
 int defaultLaneCount()
@@ -188,11 +199,7 @@ bool runRowWavefront(int stages, int rows, int chunks, int lookahead, int lanes,
         }
     };
 
-    std::vector<std::thread> threads;
-    threads.reserve(size_t(lanes - 1));
-    for (int t = 1; t < lanes; ++t) threads.emplace_back(lane, t);
-    lane(0);
-    for (auto& th : threads) th.join();
+    runLanes(lanes, lane);
     if (error) std::rethrow_exception(error);
     return !stop.load();
 }
@@ -487,12 +494,13 @@ LEVELFORGE_AI void rowChain(float* row, const float* yz, int g0, int g1, int nx,
     Carry p = carry; // a local copy stays in registers (the row may alias `carry`)
     const int gl = g1 - 1;
     const int wl = groupWidth(gl, nx);
+    auto group = [&](int g) __attribute__((always_inline)) {
+        chainGroup<Unit>(row + size_t(g) * kGroup * 4, yz + size_t(g) * kGroup, g == gl ? wl : kGroup, xs, p, ox, sx);
+    };
     if (xs > 0)
-        for (int g = g0; g < g1; ++g)
-            chainGroup<Unit>(row + size_t(g) * kGroup * 4, yz + size_t(g) * kGroup, g == gl ? wl : kGroup, 1, p, ox, sx);
+        for (int g = g0; g < g1; ++g) group(g);
     else
-        for (int g = g1 - 1; g >= g0; --g)
-            chainGroup<Unit>(row + size_t(g) * kGroup * 4, yz + size_t(g) * kGroup, g == gl ? wl : kGroup, -1, p, ox, sx);
+        for (int g = g1 - 1; g >= g0; --g) group(g);
     carry = p;
 }
 #pragma GCC diagnostic pop
@@ -785,8 +793,10 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
     std::exception_ptr error;
     std::mutex errorMutex;
 
+    // lane t owns the groups [firstGroup(t), firstGroup(t + 1))
+    auto firstGroup = [&](int t) { return int((int64_t(t) * columnGroups) / lanes); };
     auto laneBody = [&](int t, std::vector<uint8_t>& grouped) {
-        const int g0 = int((int64_t(t) * columnGroups) / lanes), g1 = int((int64_t(t + 1) * columnGroups) / lanes);
+        const int g0 = firstGroup(t), g1 = firstGroup(t + 1);
         std::vector<float> yz(size_t(columnGroups) * kGroup);
         auto reorderRow = [&](int z, int y, bool toGroups) {
             reorderGroups(data + size_t(z) * sliceFloats + size_t(y) * rowFloats, g0, g1, nx, toGroups);
@@ -869,16 +879,11 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
             stop.store(true, std::memory_order_relaxed);
         }
         // Interrupted or failed: put this lane's columns back into ClosestVector order.
-        const int g0 = int((int64_t(t) * columnGroups) / lanes), g1 = int((int64_t(t + 1) * columnGroups) / lanes);
         for (size_t i = 0; i < grouped.size(); ++i)
-            if (grouped[i]) reorderGroups(data + i * rowFloats, g0, g1, nx, false);
+            if (grouped[i]) reorderGroups(data + i * rowFloats, firstGroup(t), firstGroup(t + 1), nx, false);
     };
 
-    std::vector<std::thread> workers;
-    workers.reserve(size_t(lanes - 1));
-    for (int t = 1; t < lanes; ++t) workers.emplace_back(lane, t);
-    lane(0);
-    for (auto& th : workers) th.join();
+    runLanes(lanes, lane);
     if (error) std::rethrow_exception(error);
     if (stop.load()) {
         if (interrupter) interrupter->end();

@@ -114,9 +114,9 @@ struct VectorTransformOptions
     /// tbb::global_control, when a slice has at least 128 x 128 voxels, else 1); n > 1 = at most
     /// n (and at most one lane per 32 columns). The result does not depend on it. Serial is the
     /// default because the gain is modest and not guaranteed: the passes are memory-bound at
-    /// 16 bytes per voxel, so 2 lanes ran 1.1-1.3x faster than 1 on idle cores of our 2-core
-    /// machine and up to 1.2x slower when another process held a core (docs/benchmarks.md,
-    /// "Distance transforms on dense volumes").
+    /// 16 bytes per voxel, so 2 lanes ran 1.0-1.5x as fast as 1 on idle cores of our 2-core
+    /// machine (about 1.1x in most runs) and up to 1.2x slower when another process held a core
+    /// (docs/benchmarks.md, "Distance transforms on dense volumes").
     int threads = 1;
 };
 
