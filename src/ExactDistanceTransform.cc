@@ -279,11 +279,7 @@ std::vector<DistanceTransformComparison> distanceTransformReport(const MaskVolum
             VectorTransformOptions vo;
             vo.method = m;
             vo.interrupter = options.interrupter;
-            auto [d, s] = timed([&] {
-                VectorVolume v = initVectorVolume(features);
-                vectorDistanceTransform(v, vo);
-                return vectorLength(v);
-            });
+            auto [d, s] = timed([&] { return vectorDistanceTransform(features, vo); });
             add(vectorTransformMethodName(m), d, s);
         }
     }

@@ -14,6 +14,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <limits>
@@ -22,6 +23,10 @@
 #include <sstream>
 #include <thread>
 #include <vector>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -738,13 +743,10 @@ bool waitUntil(const std::atomic<int64_t>& value, int64_t need, const std::atomi
     return true;
 }
 
-/// The full-grid methods (VCVDT4, VCVDT8, EVDTFullGrid), in place.
-///
-/// Layout: a row is put into the grouped layout when the forward sweep first visits it and back
-/// into ClosestVector order when the backward sweep has read it for the last time (as the
-/// vertical neighbour of the next slice; the last slice after its last pass), so the reorder
-/// costs no pass over memory of its own. Rows are never read in the other layout: only the first
-/// pass group of a sweep reads the vertical neighbour (methodShapeOk).
+/// The full-grid methods (VCVDT4, VCVDT8, EVDTFullGrid) over a storage policy `Io`: the passes
+/// run on slices in the grouped layout that io.slice(z) returns, and the policy's hooks move rows
+/// in and out of that layout (InPlaceIo: the volume itself; MaskIo: two slice buffers fed from a
+/// mask, with a compact store between the sweeps).
 ///
 /// Lanes own COLUMNS: lane t owns the groups [G_t, G_t+1) of every row of every slice and runs
 /// every pass of every slice on them, in the serial order. A voxel's candidates come from its own
@@ -754,18 +756,29 @@ bool waitUntil(const std::atomic<int64_t>& value, int64_t need, const std::atomi
 /// Y*Y + Z*Z in a carry slot with a progress counter, and the downstream lane starts that row's
 /// chain after it (the row's element-wise candidates run before the wait). Every voxel therefore
 /// sees exactly the values of the serial order: results are bit-identical for any lane count.
-/// Only one vector per row and pass crosses between cores. Methods with perRow passes (EVDT's
-/// F2/B2, which reverse the x order on each row) run on one lane.
-void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::util::NullInterrupter* interrupter,
-                 int threads, int& lanesUsed)
+/// Only one vector per row and pass crosses between cores; the hooks touch only the lane's own
+/// columns. Methods with perRow passes (EVDT's F2/B2, which reverse the x order on each row) run
+/// on one lane.
+///
+/// Hooks, all on the lane's groups [g0, g1) of one row (y) of slice z:
+///  - rowStart(lane, sweep, z, y): before the first pass of the slice in this sweep reads the row;
+///  - vertDone(lane, sweep, vz, y): after that pass has read row y of the previous slice vz for
+///    the last time in this sweep;
+///  - rowEnd(lane, sweep, z, y): after the last pass of the slice in this sweep has finished the
+///    row (its values are final for the sweep);
+///  - prefetch(lane, sweep, z, y): the first pass of the slice will soon start row y;
+///  - finish(lane, z): after the last stage (z = the last slice of the backward sweep);
+///  - cleanup(lane): always, last (also after an interruption or an exception).
+template<class Io>
+void runFullGrid(Io& io, const MethodDef& m, const Kernel& k, openvdb::util::NullInterrupter* interrupter, int threads,
+                 int& lanesUsed)
 {
-    const int nx = v.dims.x(), ny = v.dims.y(), nz = v.dims.z();
-    const size_t rowFloats = size_t(nx) * 4, sliceFloats = rowFloats * size_t(ny);
+    const int nx = io.nx, ny = io.ny, nz = io.nz;
     struct Stage
     {
         int sweep, z;
         PassGroup group;
-        bool sliceStart;
+        bool sliceStart, sliceEnd;
     };
     std::vector<Stage> stages;
     for (int s = 0; s < 2; ++s) {
@@ -773,7 +786,8 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
         const auto groups = groupsOf(sw);
         for (int i = 0; i < nz; ++i) {
             const int z = sw.zOrder > 0 ? i : nz - 1 - i;
-            for (size_t g = 0; g < groups.size(); ++g) stages.push_back({s, z, groups[g], g == 0});
+            for (size_t g = 0; g < groups.size(); ++g)
+                stages.push_back({s, z, groups[g], g == 0, g + 1 == groups.size()});
         }
     }
     const int total = int(stages.size());
@@ -781,7 +795,6 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
     int lanes = hasPerRow(m) ? 1 : laneCountFor(nx, ny, threads);
     lanes = std::max(1, std::min(lanes, columnGroups / kMinGroupsPerLane));
     lanesUsed = lanes;
-    float* data = reinterpret_cast<float*>(v.data.data());
 
     // Carry slots: lane t's last vector of row r in stage si lives in slot si % kCarryRing. A lane
     // starting stage si first waits until its neighbours have finished stage si - kCarryRing, so
@@ -795,13 +808,9 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
 
     // lane t owns the groups [firstGroup(t), firstGroup(t + 1))
     auto firstGroup = [&](int t) { return int((int64_t(t) * columnGroups) / lanes); };
-    auto laneBody = [&](int t, std::vector<uint8_t>& grouped) {
-        const int g0 = firstGroup(t), g1 = firstGroup(t + 1);
+    auto laneBody = [&](int t, typename Io::Lane& ls) {
+        const int g0 = ls.g0, g1 = ls.g1;
         std::vector<float> yz(size_t(columnGroups) * kGroup);
-        auto reorderRow = [&](int z, int y, bool toGroups) {
-            reorderGroups(data + size_t(z) * sliceFloats + size_t(y) * rowFloats, g0, g1, nx, toGroups);
-            grouped[size_t(z) * size_t(ny) + size_t(y)] = toGroups;
-        };
         for (int si = 0; si < total; ++si) {
             const Stage& st = stages[size_t(si)];
             if (t == 0 && interrupter && st.sliceStart && interrupter->wasInterrupted(int((100.0 * si) / total))) {
@@ -818,10 +827,7 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
             const PassDef& p = sw.passes[st.group.first];
             const int vz = st.z - sw.zOrder;
             const bool haveVert = vz >= 0 && vz < nz;
-            const SliceView sv{data + size_t(st.z) * sliceFloats, haveVert ? data + size_t(vz) * sliceFloats : nullptr,
-                               nx, ny};
-            const bool firstVisit = st.sweep == 0 && st.sliceStart;
-            const bool lastVertRead = st.sweep == 1 && st.sliceStart && haveVert;
+            const SliceView sv{io.slice(st.z), haveVert ? io.slice(vz) : nullptr, nx, ny};
             const int up = p.xOrder > 0 ? t - 1 : t + 1;
             const bool hasUp = up >= 0 && up < lanes;
             const bool hasDown = p.xOrder > 0 ? t + 1 < lanes : t > 0;
@@ -831,19 +837,14 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
             int64_t upSeen = 0; // the upstream progress last read (it only grows)
             for (int r = 0; r < ny; ++r) {
                 const int y = p.yOrder > 0 ? r : ny - 1 - r;
-                if (st.sliceStart && r + kPrefetchRows < ny) {
-                    // The first pass of a slice reads it from memory: every row is a new page,
-                    // which the hardware prefetchers do not cross, so fetch a few rows ahead.
-                    const int py = p.yOrder > 0 ? r + kPrefetchRows : ny - 1 - r - kPrefetchRows;
-                    const char* b = reinterpret_cast<const char*>(sv.slice + size_t(py) * rowFloats +
-                                                                  size_t(g0) * kGroup * 4);
-                    const size_t bytes = size_t(std::min(nx, g1 * kGroup) - g0 * kGroup) * 16;
-                    for (size_t o = 0; o < bytes; o += 64) LEVELFORGE_PREFETCH(b + o);
+                if (st.sliceStart) {
+                    if (r + kPrefetchRows < ny)
+                        io.prefetch(ls, st.sweep, st.z, p.yOrder > 0 ? r + kPrefetchRows : ny - 1 - r - kPrefetchRows);
+                    io.rowStart(ls, st.sweep, st.z, y);
                 }
-                if (firstVisit) reorderRow(st.z, y, true);
                 const RowTask task = rowTask(p, sv, r, g0, g1);
                 k.candidates(task, yz.data(), k.s, k.unit);
-                if (lastVertRead) reorderRow(vz, y, false);
+                if (st.sliceStart && haveVert) io.vertDone(ls, st.sweep, vz, y);
                 Carry carry;
                 if (hasUp) {
                     const int64_t need = int64_t(si) * ny + r + 1;
@@ -859,37 +860,337 @@ void runFullGrid(VectorVolume& v, const MethodDef& m, const Kernel& k, openvdb::
                     k.candidates(rt, yz.data(), k.s, k.unit);
                     k.chain(rt, yz.data(), c, k.s, k.unit);
                 }
+                if (st.sliceEnd) io.rowEnd(ls, st.sweep, st.z, y);
                 // Published every few rows: a counter written on every row would bounce its cache
                 // line between the cores once per row, which costs as much as the row itself.
                 if (lanes > 1 && ((r + 1) % kPublishRows == 0 || r + 1 == ny))
                     progress[t].value.store(int64_t(si) * ny + r + 1, std::memory_order_release);
             }
         }
-        const int lastZ = stages.back().z;
-        for (int y = 0; y < ny; ++y) reorderRow(lastZ, y, false);
+        io.finish(ls, stages.back().z);
     };
 
+    std::vector<typename Io::Lane> laneStates;
+    laneStates.reserve(size_t(lanes));
+    for (int t = 0; t < lanes; ++t) laneStates.push_back(io.lane(firstGroup(t), firstGroup(t + 1)));
     auto lane = [&](int t) {
-        std::vector<uint8_t> grouped(size_t(nz) * size_t(ny), 0);
         try {
-            laneBody(t, grouped);
+            laneBody(t, laneStates[size_t(t)]);
         } catch (...) {
             std::lock_guard<std::mutex> lock(errorMutex);
             if (!error) error = std::current_exception();
             stop.store(true, std::memory_order_relaxed);
         }
-        // Interrupted or failed: put this lane's columns back into ClosestVector order.
-        for (size_t i = 0; i < grouped.size(); ++i)
-            if (grouped[i]) reorderGroups(data + i * rowFloats, firstGroup(t), firstGroup(t + 1), nx, false);
+        io.cleanup(laneStates[size_t(t)]);
     };
 
     runLanes(lanes, lane);
+    io.done(laneStates);
     if (error) std::rethrow_exception(error);
     if (stop.load()) {
         if (interrupter) interrupter->end();
         throw InterruptedError("vector distance transform interrupted");
     }
 }
+
+/// Storage policy of runFullGrid: the vector volume itself, in place. A row is put into the
+/// grouped layout when the forward sweep first visits it and back into ClosestVector order when
+/// the backward sweep has read it for the last time (as the vertical neighbour of the next slice;
+/// the last slice after its last pass), so the reorder costs no pass over memory of its own. Rows
+/// are never read in the other layout: only the first pass group of a sweep reads the vertical
+/// neighbour (methodShapeOk). An interrupted or failed transform restores every row it regrouped.
+struct InPlaceIo
+{
+    int nx, ny, nz;
+    float* data;
+    size_t rowFloats, sliceFloats;
+
+    explicit InPlaceIo(VectorVolume& v)
+        : nx(v.dims.x()), ny(v.dims.y()), nz(v.dims.z()), data(reinterpret_cast<float*>(v.data.data())),
+          rowFloats(size_t(nx) * 4), sliceFloats(size_t(nx) * 4 * size_t(ny))
+    {
+    }
+
+    struct Lane
+    {
+        int g0, g1;
+        std::vector<uint8_t> grouped; // per row (z * ny + y): in the grouped layout now
+    };
+    Lane lane(int g0, int g1) { return Lane{g0, g1, std::vector<uint8_t>(size_t(nz) * size_t(ny), 0)}; }
+    float* slice(int z) const { return data + size_t(z) * sliceFloats; }
+    void reorderRow(Lane& l, int z, int y, bool toGroups) const
+    {
+        const size_t i = size_t(z) * size_t(ny) + size_t(y);
+        reorderGroups(data + i * rowFloats, l.g0, l.g1, nx, toGroups);
+        l.grouped[i] = toGroups;
+    }
+    void prefetch(Lane& l, int, int z, int y) const
+    {
+        // The first pass of a slice reads it from memory: every row is a new page, which the
+        // hardware prefetchers do not cross, so fetch a few rows ahead.
+        const char* b = reinterpret_cast<const char*>(slice(z) + size_t(y) * rowFloats + size_t(l.g0) * kGroup * 4);
+        const size_t bytes = size_t(std::min(nx, l.g1 * kGroup) - l.g0 * kGroup) * 16;
+        for (size_t o = 0; o < bytes; o += 64) LEVELFORGE_PREFETCH(b + o);
+    }
+    void rowStart(Lane& l, int sweep, int z, int y) const
+    {
+        if (sweep == 0) reorderRow(l, z, y, true);
+    }
+    void vertDone(Lane& l, int sweep, int vz, int y) const
+    {
+        if (sweep == 1) reorderRow(l, vz, y, false);
+    }
+    void rowEnd(Lane&, int, int, int) const {}
+    void finish(Lane& l, int z) const
+    {
+        for (int y = 0; y < ny; ++y) reorderRow(l, z, y, false);
+    }
+    void cleanup(Lane& l) const
+    {
+        // Interrupted or failed: put this lane's columns back into ClosestVector order.
+        for (size_t i = 0; i < l.grouped.size(); ++i)
+            if (l.grouped[i]) reorderGroups(data + i * rowFloats, l.g0, l.g1, nx, false);
+    }
+    void done(std::vector<Lane>&) const {}
+};
+
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+using v8s = int16_t __attribute__((vector_size(16)));
+using v8b = uint8_t __attribute__((vector_size(8)));
+
+/// The row conversions of MaskIo on groups [g0, g1) of one row (grouped layout, see MaskIo).
+struct MaskRow
+{
+    float* row;           // the row in a slice buffer
+    const uint8_t* mask;  // its mask row (fill)
+    int16_t* packed;      // its 16-bit vectors (store, load)
+    float* out;           // its distances (finish)
+    int g0, g1, nx;
+};
+
+/// Eq. 8: (0, 0, 0, 0) at feature voxels, +inf elsewhere.
+LEVELFORGE_AI void maskRowFill(const MaskRow& r)
+{
+    for (int g = r.g0; g < r.g1; ++g) {
+        const int w = groupWidth(g, r.nx);
+        float* c = r.row + size_t(g) * kGroup * 4;
+        const uint8_t* mg = r.mask + size_t(g) * kGroup;
+        if (w == kGroup) {
+            v8b m8;
+            std::memcpy(&m8, mg, sizeof(m8));
+            const v8f v = __builtin_convertvector(m8, v8i) != 0 ? v8f{} : v8f{} + kInf;
+            for (int a = 0; a < 4; ++a) store8(c + a * kGroup, v);
+        } else {
+            for (int a = 0; a < 4; ++a)
+                for (int i = 0; i < w; ++i) c[a * w + i] = mg[i] ? 0.0f : kInf;
+        }
+    }
+}
+
+/// The row's final vectors as 16-bit integers (+inf as -32768).
+LEVELFORGE_AI void maskRowStore(const MaskRow& r)
+{
+    for (int g = r.g0; g < r.g1; ++g) {
+        const int w = groupWidth(g, r.nx);
+        const float* c = r.row + size_t(g) * kGroup * 4;
+        int16_t* pg = r.packed + size_t(g) * kGroup * 3;
+        if (w == kGroup) {
+            const v8i known = load8(c + 24) < kInf;
+            for (int a = 0; a < 3; ++a) {
+                const v8i xi = known ? __builtin_convertvector(known ? load8(c + 8 * a) : v8f{}, v8i) : -32768;
+                const v8s xs = __builtin_convertvector(xi, v8s);
+                std::memcpy(pg + a * kGroup, &xs, sizeof(xs));
+            }
+        } else {
+            for (int i = 0; i < w; ++i)
+                for (int a = 0; a < 3; ++a)
+                    pg[a * w + i] = c[3 * w + i] < kInf ? int16_t(c[a * w + i]) : int16_t(-32768);
+        }
+    }
+}
+
+/// Loads the row's 16-bit vectors and recomputes d2 exactly as the passes compute it.
+template<bool Unit>
+LEVELFORGE_AI void maskRowLoad(const MaskRow& r, const Spacing& s)
+{
+    for (int g = r.g0; g < r.g1; ++g) {
+        const int w = groupWidth(g, r.nx);
+        float* c = r.row + size_t(g) * kGroup * 4;
+        const int16_t* pg = r.packed + size_t(g) * kGroup * 3;
+        if (w == kGroup) {
+            v8f V[3];
+            for (int a = 0; a < 3; ++a) {
+                v8s xs;
+                std::memcpy(&xs, pg + a * kGroup, sizeof(xs));
+                const v8i xi = __builtin_convertvector(xs, v8i);
+                V[a] = xi == -32768 ? v8f{} + kInf : __builtin_convertvector(xi, v8f);
+                store8(c + a * kGroup, V[a]);
+            }
+            const v8f Xs = Unit ? V[0] : V[0] * s.sx, Ys = Unit ? V[1] : V[1] * s.sy, Zs = Unit ? V[2] : V[2] * s.sz;
+            const v8f yz = Ys * Ys + Zs * Zs;
+            store8(c + 24, Xs * Xs + yz);
+        } else {
+            for (int i = 0; i < w; ++i) {
+                float v[3];
+                for (int a = 0; a < 3; ++a) v[a] = pg[a * w + i] == -32768 ? kInf : float(pg[a * w + i]);
+                for (int a = 0; a < 3; ++a) c[a * w + i] = v[a];
+                c[3 * w + i] = vectorLengthSquared(v[0], v[1], v[2], openvdb::Vec3f(s.sx, s.sy, s.sz));
+            }
+        }
+    }
+}
+
+/// sqrt(d2) of the row's final vectors into the output; returns how many are +inf.
+LEVELFORGE_AI uint64_t maskRowFinish(const MaskRow& r)
+{
+    uint64_t unreached = 0;
+    for (int g = r.g0; g < r.g1; ++g) {
+        const int w = groupWidth(g, r.nx);
+        const float* d2 = r.row + size_t(g) * kGroup * 4 + 3 * w;
+        float* o = r.out + size_t(g) * kGroup;
+#if defined(__SSE2__)
+        if (w == kGroup) {
+            const __m128 a = _mm_loadu_ps(d2), b = _mm_loadu_ps(d2 + 4), inf = _mm_set1_ps(kInf);
+            _mm_storeu_ps(o, _mm_sqrt_ps(a));
+            _mm_storeu_ps(o + 4, _mm_sqrt_ps(b));
+            unreached += unsigned(__builtin_popcount(
+                unsigned(_mm_movemask_ps(_mm_cmpeq_ps(a, inf)) | (_mm_movemask_ps(_mm_cmpeq_ps(b, inf)) << 4))));
+            continue;
+        }
+#endif
+        for (int i = 0; i < w; ++i) {
+            o[i] = std::sqrt(d2[i]);
+            unreached += d2[i] == kInf ? 1 : 0;
+        }
+    }
+    return unreached;
+}
+
+/// op 0: fill, 1: store, 2: load, 3: finish (returns the unreached count).
+uint64_t maskRowBase(int op, const MaskRow& r, const Spacing& s, bool unit)
+{
+    switch (op) {
+    case 0: maskRowFill(r); return 0;
+    case 1: maskRowStore(r); return 0;
+    case 2: unit ? maskRowLoad<true>(r, s) : maskRowLoad<false>(r, s); return 0;
+    default: return maskRowFinish(r);
+    }
+}
+
+#ifdef LEVELFORGE_VDT_AVX
+// The same conversions for AVX2 (8 lanes per instruction; no FMA, so d2 has the same bits).
+__attribute__((target("avx2"))) uint64_t maskRowAvx2(int op, const MaskRow& r, const Spacing& s, bool unit)
+{
+    switch (op) {
+    case 0: maskRowFill(r); return 0;
+    case 1: maskRowStore(r); return 0;
+    case 2: unit ? maskRowLoad<true>(r, s) : maskRowLoad<false>(r, s); return 0;
+    default: return maskRowFinish(r);
+    }
+}
+#endif
+#pragma GCC diagnostic pop
+
+/// An uninitialised buffer for a large intermediate, in 2 MB-aligned memory advised for
+/// transparent huge pages where Linux offers them (its first touch then faults in 2 MB pages
+/// instead of 4 kB ones; on this project's benchmark VM each 4 kB fault costs about 1 us).
+template<class T>
+class PageBuffer
+{
+public:
+    explicit PageBuffer(size_t n)
+    {
+        constexpr size_t kHuge = size_t(2) << 20;
+        const size_t bytes = std::max<size_t>(1, n * sizeof(T));
+        const size_t rounded = (bytes + kHuge - 1) / kHuge * kHuge;
+        mData = static_cast<T*>(std::aligned_alloc(kHuge, rounded));
+        if (!mData) throw std::bad_alloc();
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+        madvise(mData, rounded, MADV_HUGEPAGE); // advice only: failure changes nothing but speed
+#endif
+    }
+    ~PageBuffer() { std::free(mData); }
+    PageBuffer(const PageBuffer&) = delete;
+    PageBuffer& operator=(const PageBuffer&) = delete;
+    T* get() const { return mData; }
+
+private:
+    T* mData = nullptr;
+};
+
+/// Storage policy of runFullGrid for distances from a binary mask (vectorDistanceTransform() on a
+/// MaskVolume). The passes run on two slice buffers in the grouped layout, the slice and the
+/// previous one in sweep order (work[z & 1]), so the eight passes over a slice stay in cache.
+/// The forward sweep fills each row from the mask (Eq. 8) and stores the row's final vectors as
+/// 16-bit integers: vectors to voxel-centre seeds have integer components, all below 32768 in
+/// magnitude when no dimension exceeds 32767 (checked by the caller), +inf stored as -32768. The
+/// backward sweep loads them back, recomputes d2 with the passes' own formula (the d2 the passes
+/// stored, bit for bit) and writes sqrt(d2) of its final vectors. Memory traffic per voxel: 1 byte
+/// in and 6 out in the forward sweep, 6 in and 4 out in the backward one, against 64 for the
+/// in-place passes plus the 16-byte vector volume's initialisation and read-back.
+struct MaskIo
+{
+    int nx, ny, nz;
+    const uint8_t* mask;
+    float* out;
+    Spacing s;
+    bool unit;
+    size_t rowFloats, sliceFloats, rowShorts;
+    PageBuffer<float> work;            // two slices, grouped layout (lane ranges on separate cache lines)
+    PageBuffer<int16_t> packed;        // the forward sweep's vectors, grouped: x[8] y[8] z[8] per group
+    uint64_t (*convert)(int, const MaskRow&, const Spacing&, bool) = maskRowBase;
+    uint64_t unreached = 0;
+
+    MaskIo(const MaskVolume& m, ScalarVolume& o, const Spacing& sp)
+        : nx(m.dims.x()), ny(m.dims.y()), nz(m.dims.z()), mask(m.data.data()), out(o.data.data()), s(sp),
+          unit(sp.sx == 1.0f && sp.sy == 1.0f && sp.sz == 1.0f), rowFloats(size_t(nx) * 4),
+          sliceFloats(size_t(nx) * 4 * size_t(ny)), rowShorts(size_t(nx) * 3), work(2 * sliceFloats),
+          packed(rowShorts * size_t(ny) * size_t(nz))
+    {
+#ifdef LEVELFORGE_VDT_AVX
+        if (cpuHasAvx2() && gAvx2KernelEnabled.load(std::memory_order_relaxed)) convert = maskRowAvx2;
+#endif
+    }
+
+    struct Lane
+    {
+        int g0, g1;
+        uint64_t unreached = 0;
+    };
+    Lane lane(int g0, int g1) const { return Lane{g0, g1, 0}; }
+    float* slice(int z) { return work.get() + size_t(z & 1) * sliceFloats; }
+    size_t rowIndex(int z, int y) const { return size_t(z) * size_t(ny) + size_t(y); }
+    MaskRow maskRow(const Lane& l, int z, int y)
+    {
+        const size_t i = rowIndex(z, y);
+        return MaskRow{slice(z) + size_t(y) * rowFloats, mask + i * size_t(nx), packed.get() + i * rowShorts,
+                       out + i * size_t(nx), l.g0, l.g1, nx};
+    }
+
+    void prefetch(Lane& l, int sweep, int z, int y) const
+    {
+        const int x0 = l.g0 * kGroup, x1 = std::min(nx, l.g1 * kGroup);
+        const char* b = sweep == 0 ? reinterpret_cast<const char*>(mask + rowIndex(z, y) * size_t(nx) + size_t(x0))
+                                   : reinterpret_cast<const char*>(packed.get() + rowIndex(z, y) * rowShorts +
+                                                                   size_t(x0) * 3);
+        const size_t bytes = size_t(x1 - x0) * (sweep == 0 ? 1 : 6);
+        for (size_t o = 0; o < bytes; o += 64) LEVELFORGE_PREFETCH(b + o);
+    }
+    void rowStart(Lane& l, int sweep, int z, int y) { convert(sweep == 0 ? 0 : 2, maskRow(l, z, y), s, unit); }
+    void vertDone(Lane&, int, int, int) const {}
+    void rowEnd(Lane& l, int sweep, int z, int y)
+    {
+        if (sweep == 0) convert(1, maskRow(l, z, y), s, unit);
+        else l.unreached += convert(3, maskRow(l, z, y), s, unit);
+    }
+    void finish(Lane&, int) const {}
+    void cleanup(Lane&) const {}
+    void done(std::vector<Lane>& lanes)
+    {
+        for (const Lane& l : lanes) unreached += l.unreached;
+    }
+};
 
 uint64_t countFinite(const std::vector<ClosestVector>& d)
 {
@@ -949,7 +1250,8 @@ void vectorDistanceTransform(VectorVolume& vectors, const VectorTransformOptions
         runTwoSlices(vectors, m, kernel, options.interrupter);
         st.lanes = 1;
     } else {
-        runFullGrid(vectors, m, kernel, options.interrupter, options.threads, st.lanes);
+        InPlaceIo io(vectors);
+        runFullGrid(io, m, kernel, options.interrupter, options.threads, st.lanes);
     }
     if (options.interrupter) options.interrupter->end();
     st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -957,6 +1259,48 @@ void vectorDistanceTransform(VectorVolume& vectors, const VectorTransformOptions
         st.unreached = st.voxels - countFinite(vectors.data);
         *stats = st;
     }
+}
+
+ScalarVolume vectorDistanceTransform(const MaskVolume& features, const VectorTransformOptions& options,
+                                     VectorTransformStats* stats)
+{
+    requireValidVolume(features, "vectorDistanceTransform");
+    const MethodDef& m = methodDef(options.method);
+    const int maxDim = std::max({features.dims.x(), features.dims.y(), features.dims.z()});
+    if (m.twoSlices || maxDim > 32767) {
+        // Two-slice EVDT (its own two buffers), or vectors that might not fit 16 bits.
+        VectorVolume v = initVectorVolume(features);
+        vectorDistanceTransform(v, options, stats);
+        return vectorLength(v);
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const Spacing sp{float(features.spacing[0]), float(features.spacing[1]), float(features.spacing[2])};
+    VectorTransformStats st;
+    st.voxels = features.voxelCount();
+    if (stats) {
+        st.seeds = tbb::parallel_reduce(
+            tbb::blocked_range<size_t>(0, features.data.size(), 1 << 16), uint64_t(0),
+            [&](const tbb::blocked_range<size_t>& r, uint64_t n) {
+                for (size_t i = r.begin(); i != r.end(); ++i) n += features.data[i] ? 1 : 0;
+                return n;
+            },
+            [](uint64_t a, uint64_t b) { return a + b; });
+    }
+    st.passesPerVoxel = m.sweeps[0].passCount + m.sweeps[1].passCount;
+    ScalarVolume out;
+    out.dims = features.dims;
+    out.spacing = features.spacing;
+    out.origin = features.origin;
+    out.data.resize(features.data.size());
+    if (options.interrupter) options.interrupter->start("vector distance transform");
+    const Kernel kernel(sp);
+    MaskIo io(features, out, sp);
+    runFullGrid(io, m, kernel, options.interrupter, options.threads, st.lanes);
+    if (options.interrupter) options.interrupter->end();
+    st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    st.unreached = io.unreached;
+    if (stats) *stats = st;
+    return out;
 }
 
 namespace vector_transform_internal {

@@ -177,12 +177,10 @@ ScalarVolume volumeSignedDistance(const ScalarVolume& field, const VolumeToLevel
             co.interrupter = o.interrupter;
             unsignedField = chamferDistanceTransform(features, chamferMetric(o.method), co);
         } else {
-            VectorVolume v = initVectorVolume(features);
             VectorTransformOptions vo;
             vo.method = vectorMethod(o.method);
             vo.interrupter = o.interrupter;
-            vectorDistanceTransform(v, vo);
-            unsignedField = vectorLength(v);
+            unsignedField = vectorDistanceTransform(features, vo); // no 16-byte vector volume
         }
         result = applySign(unsignedField, sign);
         stats.secondsTransform = since(t0);

@@ -507,6 +507,81 @@ TEST(VectorDistanceTransform, InterruptionLeavesWholeVectors)
             }
 }
 
+TEST(VectorDistanceTransform, MaskEntryMatchesTheVectorVolumeRouteBitForBit)
+{
+    // vectorDistanceTransform(MaskVolume) keeps 16-bit integer vectors between the sweeps and
+    // recomputes d2; it must give exactly vectorLength() of the in-place transform: every method,
+    // row widths around the group size, unit and anisotropic spacing, 1-3 lanes, the stats too.
+    std::mt19937 rng(7);
+    struct Case
+    {
+        openvdb::Coord dims;
+        openvdb::Vec3d spacing;
+        size_t every; // one feature voxel per `every` voxels
+    };
+    const Case cases[] = {{openvdb::Coord(1, 1, 1), openvdb::Vec3d(1), 1},
+                          {openvdb::Coord(7, 5, 3), openvdb::Vec3d(1), 40},
+                          {openvdb::Coord(37, 9, 11), openvdb::Vec3d(0.7, 1.3, 2.1), 150},
+                          {openvdb::Coord(131, 19, 6), openvdb::Vec3d(1), 4000},
+                          {openvdb::Coord(64, 33, 17), openvdb::Vec3d(1.0, 1.0, 2.5), 300}};
+    for (const Case& c : cases) {
+        MaskVolume f(c.dims, 0, c.spacing);
+        std::uniform_int_distribution<size_t> pick(0, f.data.size() - 1);
+        for (size_t i = 0; i < std::max<size_t>(1, f.data.size() / c.every); ++i) f.data[pick(rng)] = 1;
+        for (VectorTransformMethod m : kMethods)
+            for (int lanes : {1, 2, 3}) {
+                VectorVolume v = initVectorVolume(f);
+                VectorTransformStats ref;
+                transformWithLanes(v, m, lanes, &ref);
+                const ScalarVolume expected = vectorLength(v);
+                VectorTransformStats st;
+                ScalarVolume d;
+                {
+                    tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(lanes));
+                    tbb::task_arena arena(lanes);
+                    arena.execute([&] {
+                        VectorTransformOptions o;
+                        o.method = m;
+                        o.threads = lanes;
+                        d = vectorDistanceTransform(f, o, &st);
+                    });
+                }
+                ASSERT_EQ(d.dims, f.dims);
+                ASSERT_EQ(d.spacing, f.spacing);
+                ASSERT_EQ(d.data.size(), expected.data.size());
+                ASSERT_EQ(0, std::memcmp(d.data.data(), expected.data.data(), d.data.size() * sizeof(float)))
+                    << vectorTransformMethodName(m) << " dims " << c.dims << " lanes " << lanes;
+                EXPECT_EQ(st.seeds, ref.seeds);
+                EXPECT_EQ(st.unreached, ref.unreached);
+                EXPECT_EQ(st.lanes, ref.lanes);
+                EXPECT_EQ(st.voxels, f.voxelCount());
+            }
+    }
+    // No feature at all: everything unreached, +inf.
+    MaskVolume none(openvdb::Coord(9, 4, 3), 0);
+    VectorTransformStats st;
+    const ScalarVolume d = vectorDistanceTransform(none, VectorTransformOptions(), &st);
+    EXPECT_EQ(st.unreached, none.voxelCount());
+    for (float x : d.data) EXPECT_EQ(x, kInf);
+}
+
+TEST(VectorDistanceTransform, MaskEntryReachesEveryVoxelOfALongLine)
+{
+    // Vectors as long as the volume (|x| = 2999 with one feature at the end of a 3000-voxel row)
+    // must survive the 16-bit store exactly.
+    MaskVolume f(openvdb::Coord(3000, 2, 2), 0);
+    f(2999, 1, 1) = 1;
+    const ScalarVolume d = vectorDistanceTransform(f);
+    ASSERT_EQ(0, std::memcmp(d.data.data(), transform(f, VectorTransformMethod::VCVDT8).data.data(),
+                             d.data.size() * sizeof(float)));
+    for (int k = 0; k < 2; ++k)
+        for (int j = 0; j < 2; ++j)
+            for (int i = 0; i < 3000; i += 7) {
+                const double dx = 2999 - i, dy = 1 - j, dz = 1 - k;
+                EXPECT_NEAR(d(i, j, k), std::sqrt(dx * dx + dy * dy + dz * dz), 1e-3) << i << " " << j << " " << k;
+            }
+}
+
 TEST(VectorDistanceTransform, NoSeedsStayInfinite)
 {
     VectorVolume v(openvdb::Coord(5, 6, 7), ClosestVector{kInf, kInf, kInf, kInf});
@@ -535,6 +610,9 @@ TEST(VectorDistanceTransform, BadInputsAndInterrupt)
     v.data.pop_back();
     EXPECT_THROW(vectorDistanceTransform(v), InvalidArgumentError);
     EXPECT_THROW(vectorLength(v), InvalidArgumentError);
+    EXPECT_THROW(vectorDistanceTransform(MaskVolume()), InvalidArgumentError);
+    MaskVolume badMask(openvdb::Coord(4), 1, openvdb::Vec3d(1, -1, 1));
+    EXPECT_THROW(vectorDistanceTransform(badMask), InvalidArgumentError);
 
     struct Stop : openvdb::util::NullInterrupter
     {
@@ -546,5 +624,7 @@ TEST(VectorDistanceTransform, BadInputsAndInterrupt)
         o.method = m;
         o.interrupter = &stop;
         EXPECT_THROW(vectorDistanceTransform(w, o), InterruptedError) << vectorTransformMethodName(m);
+        EXPECT_THROW(vectorDistanceTransform(MaskVolume(openvdb::Coord(6), 1), o), InterruptedError)
+            << vectorTransformMethodName(m);
     }
 }

@@ -62,6 +62,11 @@
 // previous voxel, sequential). x86-64 CPUs with AVX2 run an AVX2 build of the same code (no FMA:
 // bit-identical).
 //
+// From a mask, vectorDistanceTransform(const MaskVolume&) gives the distances in one go, bit for
+// bit as the vector-volume route, without building the vector volume: the passes run on two
+// slice buffers that stay in cache and only a 16-bit integer vector per voxel (6 bytes) is kept
+// between the sweeps; d2 is recomputed with the passes' own formula on the way back.
+//
 // Parallelism: each in-slice pass is a 2-D raster with dependencies on x-1 and y-1 (in pass
 // order). Lanes (plain std::thread) own COLUMNS: lane t runs every pass of every slice on its
 // x-range, whose previous rows and previous slices are its own; only the in-row chain crosses
@@ -113,10 +118,10 @@ struct VectorTransformOptions
     /// Lanes (threads). 1 (default) = serial; 0 = automatic (the TBB concurrency, capped by
     /// tbb::global_control, when a slice has at least 128 x 128 voxels, else 1); n > 1 = at most
     /// n (and at most one lane per 32 columns). The result does not depend on it. Serial is the
-    /// default because the gain is modest and not guaranteed: the passes are memory-bound at
-    /// 16 bytes per voxel, so 2 lanes ran 1.0-1.5x as fast as 1 on idle cores of our 2-core
-    /// machine (about 1.1x in most runs) and up to 1.2x slower when another process held a core
-    /// (docs/benchmarks.md, "Distance transforms on dense volumes").
+    /// default because the gain is modest and not guaranteed: on idle cores of our 2-core
+    /// machine 2 lanes ran 1.0-1.5x as fast as 1 (about 1.1-1.2x in most runs; the lanes wait
+    /// for each other where a pass reverses the x order) and up to 1.2x slower when another
+    /// process held a core (docs/benchmarks.md, "Distance transforms on dense volumes").
     int threads = 1;
 };
 
@@ -144,6 +149,19 @@ void vectorDistanceTransform(VectorVolume& vectors, const VectorTransformOptions
 
 /// sqrt(d2) per voxel, world units (+inf where unreached). Same dims, spacing, origin.
 ScalarVolume vectorLength(const VectorVolume& vectors);
+
+/// Distances in one go: from the feature voxels (mask != 0) of a binary volume to every voxel
+/// centre, in world units (+inf where unreached), by the chosen method. The result is bit for bit
+/// vectorLength() of initVectorVolume() propagated by vectorDistanceTransform() with the same
+/// options, but the 16-byte vector volume is never built: the full-grid methods (VCVDT4, VCVDT8,
+/// EVDTFullGrid) run their passes on two slice buffers that stay in cache and keep only a
+/// 6-byte integer vector per voxel between the sweeps (vectors to voxel centres have integer
+/// components), so they read and write about 17 bytes per voxel instead of about 100, and hold
+/// 10 bytes per voxel instead of 20. (EVDT, and volumes with a dimension above 32767, take the
+/// vector-volume route.) stats->seconds covers the whole call, allocations included. Throws
+/// InvalidArgumentError (empty volume, bad spacing, size mismatch) or InterruptedError.
+ScalarVolume vectorDistanceTransform(const MaskVolume& features, const VectorTransformOptions& options = {},
+                                     VectorTransformStats* stats = nullptr);
 
 /// Squared world length of a vector in voxel units, computed exactly as the passes do.
 inline float vectorLengthSquared(float x, float y, float z, const openvdb::Vec3f& spacing)
