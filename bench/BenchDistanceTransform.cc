@@ -302,6 +302,25 @@ void digestRows(const std::string& name, const VectorVolume& seeds)
     }
 }
 
+/// Digests of the mask entry's distances (every method, 1 and 2 lanes).
+void digestMaskRows(const std::string& name, const MaskVolume& features)
+{
+    for (VectorTransformMethod m : {VectorTransformMethod::VCVDT8, VectorTransformMethod::VCVDT4,
+                                    VectorTransformMethod::EVDTFullGrid, VectorTransformMethod::EVDT}) {
+        for (int lanes : {1, 2}) {
+            VectorTransformOptions o;
+            o.method = m;
+            o.threads = lanes;
+            VectorTransformStats st;
+            const ScalarVolume d = vectorDistanceTransform(features, o, &st);
+            std::printf("digest | %s | %s, mask entry (distances) | %d lane(s) (%d used) | %016llx |\n",
+                        name.c_str(), vectorTransformMethodName(m), lanes, st.lanes,
+                        (unsigned long long)fnv1a(d.data.data(), d.data.size() * sizeof(float)));
+            std::fflush(stdout);
+        }
+    }
+}
+
 /// Anisotropic volume with odd dims and fractional seeds (sub-voxel shells, Section 4).
 VectorVolume fractionalSeeds()
 {
@@ -383,10 +402,14 @@ int main(int argc, char** argv)
 #endif
         }
         if (digest) {
-            for (const auto& d : sets) digestRows(d.name, initVectorVolume(transverseFeatures(d.inside)));
+            for (const auto& d : sets) {
+                digestRows(d.name, initVectorVolume(transverseFeatures(d.inside)));
+                digestMaskRows(d.name, transverseFeatures(d.inside));
+            }
             if (big > 0) {
                 const Dataset b = sphere(big, 0.5 * (big - 1), 0.37 * big);
                 digestRows(b.name, initVectorVolume(transverseFeatures(b.inside)));
+                digestMaskRows(b.name, transverseFeatures(b.inside));
             }
             digestRows("fractional seeds 67x45x53 (spacing 0.7 x 1.3 x 1.1)", fractionalSeeds());
             return 0;

@@ -911,7 +911,7 @@ struct InPlaceIo
     {
     }
 
-    struct Lane
+    struct alignas(64) Lane // one cache line or more each: lanes write their own only
     {
         int g0, g1;
         std::vector<uint8_t> grouped; // per row (z * ny + y): in the grouped layout now
@@ -1153,7 +1153,7 @@ struct MaskIo
 #endif
     }
 
-    struct Lane
+    struct alignas(64) Lane // one cache line each: lanes write their own only
     {
         int g0, g1;
         uint64_t unreached = 0;
