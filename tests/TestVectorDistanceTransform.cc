@@ -79,9 +79,9 @@ VectorVolume randomSeeds(const openvdb::Coord& dims, const openvdb::Vec3d& sp, b
     return seeds;
 }
 
-/// Transforms v in place with `lanes` lanes, in an arena (and global_control) of that size.
-void transformWithLanes(VectorVolume& v, VectorTransformMethod m, int lanes, VectorTransformStats* st = nullptr,
-                        openvdb::util::NullInterrupter* interrupter = nullptr)
+/// Calls run(options) for method m with `lanes` lanes, in an arena (and global_control) of that size.
+template<class Run>
+void withLanes(VectorTransformMethod m, int lanes, openvdb::util::NullInterrupter* interrupter, const Run& run)
 {
     tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(lanes));
     tbb::task_arena arena(lanes);
@@ -90,8 +90,15 @@ void transformWithLanes(VectorVolume& v, VectorTransformMethod m, int lanes, Vec
         o.method = m;
         o.threads = lanes;
         o.interrupter = interrupter;
-        vectorDistanceTransform(v, o, st);
+        run(o);
     });
+}
+
+/// Transforms v in place with `lanes` lanes.
+void transformWithLanes(VectorVolume& v, VectorTransformMethod m, int lanes, VectorTransformStats* st = nullptr,
+                        openvdb::util::NullInterrupter* interrupter = nullptr)
+{
+    withLanes(m, lanes, interrupter, [&](const VectorTransformOptions& o) { vectorDistanceTransform(v, o, st); });
 }
 
 } // namespace
@@ -536,16 +543,7 @@ TEST(VectorDistanceTransform, MaskEntryMatchesTheVectorVolumeRouteBitForBit)
                 const ScalarVolume expected = vectorLength(v);
                 VectorTransformStats st;
                 ScalarVolume d;
-                {
-                    tbb::global_control allow(tbb::global_control::max_allowed_parallelism, size_t(lanes));
-                    tbb::task_arena arena(lanes);
-                    arena.execute([&] {
-                        VectorTransformOptions o;
-                        o.method = m;
-                        o.threads = lanes;
-                        d = vectorDistanceTransform(f, o, &st);
-                    });
-                }
+                withLanes(m, lanes, nullptr, [&](const VectorTransformOptions& o) { d = vectorDistanceTransform(f, o, &st); });
                 ASSERT_EQ(d.dims, f.dims);
                 ASSERT_EQ(d.spacing, f.spacing);
                 ASSERT_EQ(d.data.size(), expected.data.size());
