@@ -603,11 +603,13 @@ struct Kernel
     void (*chain)(const RowTask&, const float*, Carry&, const Spacing&, bool) = rowChainBase;
     Spacing s{1, 1, 1};
     bool unit = true;
+    bool avx2 = false; // the AVX2 builds are in use (also picks MaskIo's row conversions)
 
     Kernel(const Spacing& sp) : s(sp), unit(sp.sx == 1.0f && sp.sy == 1.0f && sp.sz == 1.0f)
     {
 #ifdef LEVELFORGE_VDT_AVX
         if (cpuHasAvx2() && gAvx2KernelEnabled.load(std::memory_order_relaxed)) {
+            avx2 = true;
             candidates = rowCandidatesAvx2;
             chain = rowChainAvx2;
         }
@@ -1136,22 +1138,23 @@ struct MaskIo
     int nx, ny, nz;
     const uint8_t* mask;
     float* out;
-    Spacing s;
-    bool unit;
+    const Kernel& k; // spacing, unit flag and build
     size_t rowFloats, sliceFloats, rowShorts;
     PageBuffer<float> work;            // two slices, grouped layout (lane ranges on separate cache lines)
     PageBuffer<int16_t> packed;        // the forward sweep's vectors, grouped: x[8] y[8] z[8] per group
-    uint64_t (*convert)(int, const MaskRow&, const Spacing&, bool) = maskRowBase;
+    uint64_t (*convert)(int, const MaskRow&, const Spacing&, bool);
     uint64_t unreached = 0;
 
-    MaskIo(const MaskVolume& m, ScalarVolume& o, const Spacing& sp)
-        : nx(m.dims.x()), ny(m.dims.y()), nz(m.dims.z()), mask(m.data.data()), out(o.data.data()), s(sp),
-          unit(sp.sx == 1.0f && sp.sy == 1.0f && sp.sz == 1.0f), rowFloats(size_t(nx) * 4),
+    MaskIo(const MaskVolume& m, ScalarVolume& o, const Kernel& kernel)
+        : nx(m.dims.x()), ny(m.dims.y()), nz(m.dims.z()), mask(m.data.data()), out(o.data.data()), k(kernel),
+          rowFloats(size_t(nx) * 4),
           sliceFloats(size_t(nx) * 4 * size_t(ny)), rowShorts(size_t(nx) * 3), work(2 * sliceFloats),
           packed(rowShorts * size_t(ny) * size_t(nz))
     {
 #ifdef LEVELFORGE_VDT_AVX
-        if (cpuHasAvx2() && gAvx2KernelEnabled.load(std::memory_order_relaxed)) convert = maskRowAvx2;
+        convert = k.avx2 ? maskRowAvx2 : maskRowBase;
+#else
+        convert = maskRowBase;
 #endif
     }
 
@@ -1179,12 +1182,12 @@ struct MaskIo
         const size_t bytes = size_t(x1 - x0) * (sweep == 0 ? 1 : 6);
         for (size_t o = 0; o < bytes; o += 64) LEVELFORGE_PREFETCH(b + o);
     }
-    void rowStart(Lane& l, int sweep, int z, int y) { convert(sweep == 0 ? 0 : 2, maskRow(l, z, y), s, unit); }
+    void rowStart(Lane& l, int sweep, int z, int y) { convert(sweep == 0 ? 0 : 2, maskRow(l, z, y), k.s, k.unit); }
     void vertDone(Lane&, int, int, int) const {}
     void rowEnd(Lane& l, int sweep, int z, int y)
     {
-        if (sweep == 0) convert(1, maskRow(l, z, y), s, unit);
-        else l.unreached += convert(3, maskRow(l, z, y), s, unit);
+        if (sweep == 0) convert(1, maskRow(l, z, y), k.s, k.unit);
+        else l.unreached += convert(3, maskRow(l, z, y), k.s, k.unit);
     }
     void finish(Lane&, int) const {}
     void cleanup(Lane&) const {}
@@ -1298,7 +1301,7 @@ ScalarVolume vectorDistanceTransform(const MaskVolume& features, const VectorTra
     out.data.resize(features.data.size());
     if (options.interrupter) options.interrupter->start("vector distance transform");
     const Kernel kernel(sp);
-    MaskIo io(features, out, sp);
+    MaskIo io(features, out, kernel);
     runFullGrid(io, m, kernel, options.interrupter, options.threads, st.lanes);
     if (options.interrupter) options.interrupter->end();
     st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
