@@ -20,10 +20,10 @@
 // mesh box and the slice at middle z, distance colour-coded blue → green → red (negative →
 // positive, square-root scale), the zero level black, reconstruction cells of size ≥ 2
 // outlined (8³ tiles lighter).
-#include <levelforge/AdaptiveDistanceField.h>
-#include <levelforge/Exceptions.h>
-#include <levelforge/ExactReference.h>
-#include <levelforge/MeshIO.h>
+#include <levelforge/adf/AdaptiveDistanceField.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/reference/ExactReference.h>
+#include <levelforge/io/MeshIO.h>
 
 #include <openvdb/openvdb.h>
 

@@ -17,13 +17,13 @@
 // reference at each voxel centre, ExactReference.h); a --volume scalar file thresholded at
 // --iso (f >= iso is inside, Eq. 2) when given; the 256^3 sphere for throughput only.
 // Prints markdown (docs/benchmarks.md, "Distance transforms on dense volumes"). Times are the best of --repeats runs.
-#include <levelforge/ChamferDistanceTransform.h>
-#include <levelforge/ExactDistanceTransform.h>
-#include <levelforge/ExactReference.h>
-#include <levelforge/MeshIO.h>
-#include <levelforge/VectorDistanceTransform.h>
-#if __has_include(<levelforge/VolumeIO.h>)
-#include <levelforge/VolumeIO.h>
+#include <levelforge/volume/ChamferDistanceTransform.h>
+#include <levelforge/volume/ExactDistanceTransform.h>
+#include <levelforge/reference/ExactReference.h>
+#include <levelforge/io/MeshIO.h>
+#include <levelforge/volume/VectorDistanceTransform.h>
+#if __has_include(<levelforge/io/VolumeIO.h>)
+#include <levelforge/io/VolumeIO.h>
 #define LEVELFORGE_BENCH_HAVE_VOLUMEIO 1
 #endif
 

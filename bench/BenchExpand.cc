@@ -16,10 +16,10 @@
 // active voxels (every `stride`-th one, in voxels), sign errors, and for levelforge the sweep
 // rounds, the final max change and the sweep time per million voxels (paper Table 4; the swept
 // voxels are the candidate domain, whole leaf nodes for the sweep).
-#include <levelforge/ExactReference.h>
-#include <levelforge/FastSweeping.h>
-#include <levelforge/MeshIO.h>
-#include <levelforge/MeshToLevelSet.h>
+#include <levelforge/reference/ExactReference.h>
+#include <levelforge/expand/ExpandLevelSet.h>
+#include <levelforge/io/MeshIO.h>
+#include <levelforge/mesh/MeshToLevelSet.h>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/FastSweeping.h>

@@ -2,8 +2,8 @@
 // ~0.4-1.6 M faces made from the 100 k-face dev meshes.
 #pragma once
 
-#include <levelforge/Exceptions.h>
-#include <levelforge/TriangleMesh.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/core/TriangleMesh.h>
 
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 #include <OpenMesh/Tools/Subdivider/Uniform/LoopT.hh>

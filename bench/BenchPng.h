@@ -1,7 +1,7 @@
 // PNG output for the benchmark pictures, through libpng's simplified API.
 #pragma once
 
-#include <levelforge/Exceptions.h>
+#include <levelforge/core/Exceptions.h>
 
 #include <png.h>
 

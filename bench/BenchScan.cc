@@ -19,15 +19,15 @@
 // with |d|), yellow = voxel of the exact band that the shell missed, green = present but wrong
 // (> 1e-4 voxel from the exact distance), dark grey = outside the band; the paper's hulls
 // (ShellCoverage::Paper). Written with libpng.
-#include <levelforge/ExactReference.h>
-#include <levelforge/MeshIO.h>
-#include <levelforge/MeshToLevelSet.h>
-#include <levelforge/TetScanConversion.h>
+#include <levelforge/reference/ExactReference.h>
+#include <levelforge/io/MeshIO.h>
+#include <levelforge/mesh/MeshToLevelSet.h>
+#include <levelforge/scan/TetScanConversion.h>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
 
-#include <levelforge/Exceptions.h>
+#include <levelforge/core/Exceptions.h>
 
 #include <chrono>
 #include <cmath>

@@ -19,12 +19,12 @@
 // because in one process a later run reuses memory the allocators kept from an earlier one;
 // the first-run figure of the shared process is printed too. LFB_DEBUG=1 prints the RSS details.
 
-#include <levelforge/Exceptions.h>
-#include <levelforge/ExactReference.h>
-#include <levelforge/MeshIO.h>
-#include <levelforge/MeshShapes.h>
-#include <levelforge/MeshToLevelSet.h>
-#include <levelforge/TriangleMesh.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/reference/ExactReference.h>
+#include <levelforge/io/MeshIO.h>
+#include <levelforge/reference/MeshShapes.h>
+#include <levelforge/mesh/MeshToLevelSet.h>
+#include <levelforge/core/TriangleMesh.h>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>

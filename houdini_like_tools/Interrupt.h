@@ -6,7 +6,7 @@
 // ends the process at once (the default action is restored after the first).
 #pragma once
 
-#include <levelforge/Progress.h>
+#include <levelforge/core/Progress.h>
 
 namespace levelforge::ops {
 

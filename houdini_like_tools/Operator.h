@@ -27,7 +27,7 @@
 // declaration order.
 #pragma once
 
-#include <levelforge/Exceptions.h>
+#include <levelforge/core/Exceptions.h>
 
 #include <cstdint>
 #include <functional>

@@ -1,7 +1,7 @@
 // levelforge — operator registry and the generated command line (see OperatorRegistry.h).
 #include "OperatorRegistry.h"
 
-#include <levelforge/VdbIO.h> // generatorString()
+#include <levelforge/io/VdbIO.h> // generatorString()
 
 #include <CLI/CLI.hpp>
 

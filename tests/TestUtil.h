@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-#include <levelforge/DenseVolume.h>
+#include <levelforge/core/DenseVolume.h>
 
 #include <cstdlib>
 #include <filesystem>

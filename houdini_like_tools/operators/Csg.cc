@@ -2,9 +2,9 @@
 // (Yin et al. Figure 10; Houdini: VDB Combine in SDF mode).
 #include "Operator.h"
 
-#include <levelforge/AdaptiveDistanceField.h>
-#include <levelforge/Exceptions.h>
-#include <levelforge/VdbIO.h>
+#include <levelforge/adf/AdaptiveDistanceField.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/io/VdbIO.h>
 
 #include <openvdb/openvdb.h>
 

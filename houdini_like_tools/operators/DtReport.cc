@@ -3,13 +3,13 @@
 #include "Interrupt.h"
 #include "Operator.h"
 
-#include <levelforge/ChamferDistanceTransform.h>
-#include <levelforge/Exceptions.h>
-#include <levelforge/ExactDistanceTransform.h>
-#include <levelforge/ExactReference.h>
-#include <levelforge/MeshIO.h>
-#include <levelforge/VolumeIO.h>
-#include <levelforge/VolumeToLevelSet.h>
+#include <levelforge/volume/ChamferDistanceTransform.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/volume/ExactDistanceTransform.h>
+#include <levelforge/reference/ExactReference.h>
+#include <levelforge/io/MeshIO.h>
+#include <levelforge/io/VolumeIO.h>
+#include <levelforge/volume/VolumeToLevelSet.h>
 
 #include <algorithm>
 #include <chrono>

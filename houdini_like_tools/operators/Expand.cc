@@ -4,9 +4,9 @@
 #include "Operator.h"
 #include "OperatorText.h"
 
-#include <levelforge/Exceptions.h>
-#include <levelforge/FastSweeping.h>
-#include <levelforge/VdbIO.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/expand/ExpandLevelSet.h>
+#include <levelforge/io/VdbIO.h>
 
 #include <openvdb/openvdb.h>
 

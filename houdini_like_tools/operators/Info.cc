@@ -2,7 +2,7 @@
 #include "Operator.h"
 #include "OperatorText.h"
 
-#include <levelforge/VdbIO.h>
+#include <levelforge/io/VdbIO.h>
 
 #include <openvdb/openvdb.h>
 

@@ -4,12 +4,12 @@
 #include "Operator.h"
 #include "OperatorText.h"
 
-#include <levelforge/AdaptiveDistanceField.h>
-#include <levelforge/Exceptions.h>
-#include <levelforge/MeshIO.h>
-#include <levelforge/MeshShapes.h>
-#include <levelforge/MeshValidation.h>
-#include <levelforge/VdbIO.h>
+#include <levelforge/adf/AdaptiveDistanceField.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/io/MeshIO.h>
+#include <levelforge/reference/MeshShapes.h>
+#include <levelforge/core/MeshValidation.h>
+#include <levelforge/io/VdbIO.h>
 
 #include <openvdb/openvdb.h>
 

@@ -4,15 +4,15 @@
 #include "Operator.h"
 #include "OperatorText.h"
 
-#include <levelforge/Exceptions.h>
-#include <levelforge/FastSweeping.h>
-#include <levelforge/MeshIO.h>
-#include <levelforge/MeshShapes.h>
-#include <levelforge/MeshToLevelSet.h>
-#include <levelforge/MeshValidation.h>
-#include <levelforge/TetScanConversion.h> // --method scan (issue 5)
-#include <levelforge/Progress.h>
-#include <levelforge/VdbIO.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/expand/ExpandLevelSet.h>
+#include <levelforge/io/MeshIO.h>
+#include <levelforge/reference/MeshShapes.h>
+#include <levelforge/mesh/MeshToLevelSet.h>
+#include <levelforge/core/MeshValidation.h>
+#include <levelforge/scan/TetScanConversion.h> // --method scan (issue 5)
+#include <levelforge/core/Progress.h>
+#include <levelforge/io/VdbIO.h>
 
 #include <openvdb/openvdb.h>
 

@@ -1,9 +1,9 @@
 // levelforge operator `sample`: the signed distance of an ADF or a level set at a world point.
 #include "Operator.h"
 
-#include <levelforge/AdaptiveDistanceField.h>
-#include <levelforge/Exceptions.h>
-#include <levelforge/VdbIO.h>
+#include <levelforge/adf/AdaptiveDistanceField.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/io/VdbIO.h>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Interpolation.h>

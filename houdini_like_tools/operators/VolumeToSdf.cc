@@ -5,11 +5,11 @@
 #include "Operator.h"
 #include "OperatorText.h"
 
-#include <levelforge/Exceptions.h>
-#include <levelforge/SparseVolumeToLevelSet.h>
-#include <levelforge/VdbIO.h>
-#include <levelforge/VolumeIO.h>
-#include <levelforge/VolumeToLevelSet.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/volume/SparseVolumeToLevelSet.h>
+#include <levelforge/io/VdbIO.h>
+#include <levelforge/io/VolumeIO.h>
+#include <levelforge/volume/VolumeToLevelSet.h>
 
 #include <openvdb/openvdb.h>
 

@@ -1,82 +1,9 @@
-// levelforge — exact dense Euclidean distance transform, a brute-force reference, and the
-// accuracy report of Satherley & Jones (Tables 1, 2, 4–6).
-//
-// exactDistanceTransform(): P. F. Felzenszwalb and D. P. Huttenlocher, "Distance Transforms of
-// Sampled Functions", Theory of Computing 8 (2012): the squared Euclidean distance transform is
-// separable, D(p) = min_q |p - q|^2 = min over z of (sz^2 dz^2 + min over y of (sy^2 dy^2 +
-// min over x of (sx^2 dx^2 + f))), and each 1-D step is the lower envelope of parabolas, O(n)
-// per line. Anisotropic spacing enters as the parabola weight s^2 of each axis. Lines are
-// independent and run in parallel with TBB (results do not depend on the thread count).
-// EXACT: the distance, in world units, from every voxel centre to the nearest feature voxel
-// centre, up to single-precision rounding (the envelope is evaluated in double precision, the
-// partial squared distances between axes are stored as float). This is the "true Euclidean
-// distance field" of the paper's tables for binary features; it is not the distance to a
-// sub-voxel surface.
-//
-// bruteForceDistanceTransform(): the same quantity by testing every feature voxel (O(N·F),
-// double precision); for tests on small volumes.
-//
-// compareDistanceFields() / distanceTransformReport(): the columns of the paper's tables:
-// distance range of the computed field, error = computed - exact per voxel (min, max), and the
-// average error per voxel = sum |error| / number of voxels (all voxels, as the paper divides by
-// the dataset size). The report runs every chamfer and vector transform on a signed inside
-// mask (features = transverse voxels, Eq. 3; sign by Eq. 5–6) and times each one.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Forwarding header, kept for one release (0.2): this header moved to
+///        <levelforge/volume/ExactDistanceTransform.h>. Include that instead; this one will be removed in 0.3.
 #pragma once
-
-#include <levelforge/ChamferDistanceTransform.h>
-#include <levelforge/DenseVolume.h>
-#include <levelforge/VectorDistanceTransform.h>
-
-#include <openvdb/util/NullInterrupter.h>
-
-#include <string>
-#include <vector>
-
-namespace levelforge {
-
-struct ExactTransformOptions
-{
-    /// Optional interruption (checked between the three axis passes and per slab); not owned.
-    openvdb::util::NullInterrupter* interrupter = nullptr;
-};
-
-/// Exact Euclidean distance (world units) from every voxel centre to the nearest feature voxel
-/// centre (mask != 0); +inf everywhere when there is no feature. Same dims, spacing, origin.
-/// Linear time. Throws InvalidArgumentError (empty, spacing <= 0 or NaN, size mismatch) or
-/// InterruptedError.
-ScalarVolume exactDistanceTransform(const MaskVolume& features, const ExactTransformOptions& options = {});
-
-/// The same by brute force over the feature voxels (O(N·F)); for small tests.
-ScalarVolume bruteForceDistanceTransform(const MaskVolume& features);
-
-/// One row of the paper's tables.
-struct DistanceTransformComparison
-{
-    std::string method;
-    double seconds = 0;                 ///< time of the transform (report only)
-    float minDistance = 0, maxDistance = 0; ///< range of the computed field (world units)
-    float minError = 0, maxError = 0;   ///< range of computed - exact (world units)
-    double averageErrorPerVoxel = 0;    ///< sum |computed - exact| / voxel count
-    uint64_t voxelsWithError = 0;       ///< voxels where computed != exact (|error| > 1e-5 · max(1,|exact|))
-};
-
-/// Compares two fields voxel by voxel (equal dims required, InvalidArgumentError otherwise).
-/// Voxels where both are the same infinity count as error 0; any other non-finite error
-/// makes min/max/average infinite. Deterministic (fixed summation order).
-DistanceTransformComparison compareDistanceFields(const ScalarVolume& computed, const ScalarVolume& exact);
-
-struct DistanceTransformReportOptions
-{
-    bool chamfer = true;       ///< the five chamfer metrics (Table 1)
-    bool vector = true;        ///< EVDT, EVDT full grid, VCVDT4, VCVDT8 (Tables 2, 4–6)
-    int repeats = 1;           ///< each transform is timed this many times; the fastest counts
-    openvdb::util::NullInterrupter* interrupter = nullptr;
-};
-
-/// Signed fields of every transform for the object `inside` (features: transverseFeatures;
-/// sign: classification, Eq. 5–6), each compared with the signed exact EDT. The first row is
-/// the exact EDT itself ("Euclidean", error 0). Methods are named as the paper's tables.
-std::vector<DistanceTransformComparison> distanceTransformReport(const MaskVolume& inside,
-                                                                 const DistanceTransformReportOptions& options = {});
-
-} // namespace levelforge
+#if !defined(LEVELFORGE_NO_MOVED_HEADER_WARNINGS)
+#pragma message("<levelforge/ExactDistanceTransform.h> moved to <levelforge/volume/ExactDistanceTransform.h>; this forwarding header goes away in levelforge 0.3")
+#endif
+#include <levelforge/volume/ExactDistanceTransform.h>

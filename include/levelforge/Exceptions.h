@@ -1,56 +1,9 @@
-// levelforge — typed exceptions.
-//
-// Library code never exits: every failure is reported by throwing one of these types, each
-// with a message a user can act on (which file, which element, which value). The CLI turns
-// them into one line on stderr and a non-zero exit code.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Forwarding header, kept for one release (0.2): this header moved to
+///        <levelforge/core/Exceptions.h>. Include that instead; this one will be removed in 0.3.
 #pragma once
-
-#include <stdexcept>
-#include <string>
-
-namespace levelforge {
-
-/// Base of every exception levelforge throws.
-class Error : public std::runtime_error
-{
-public:
-    explicit Error(const std::string& msg) : std::runtime_error(msg) {}
-};
-
-/// A parameter is out of its valid range (voxel size <= 0, NaN band width, ...).
-class InvalidArgumentError : public Error
-{
-public:
-    explicit InvalidArgumentError(const std::string& msg) : Error(msg) {}
-};
-
-/// A mesh is unusable: unreadable file, no triangles, NaN/Inf coordinates, bad index.
-/// The message names the file and the element (vertex or face number, 0-based unless said).
-class InvalidMeshError : public Error
-{
-public:
-    explicit InvalidMeshError(const std::string& msg) : Error(msg) {}
-};
-
-/// Reading or writing a file failed (missing, permission, disk full, not a .vdb, ...).
-class IoError : public Error
-{
-public:
-    explicit IoError(const std::string& msg) : Error(msg) {}
-};
-
-/// The requested grid would not fit in memory (or exceeds a configured voxel limit).
-class ResourceLimitError : public Error
-{
-public:
-    explicit ResourceLimitError(const std::string& msg) : Error(msg) {}
-};
-
-/// The caller's interrupter asked to stop; partial results were discarded.
-class InterruptedError : public Error
-{
-public:
-    explicit InterruptedError(const std::string& msg = "interrupted") : Error(msg) {}
-};
-
-} // namespace levelforge
+#if !defined(LEVELFORGE_NO_MOVED_HEADER_WARNINGS)
+#pragma message("<levelforge/Exceptions.h> moved to <levelforge/core/Exceptions.h>; this forwarding header goes away in levelforge 0.3")
+#endif
+#include <levelforge/core/Exceptions.h>

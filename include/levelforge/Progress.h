@@ -1,40 +1,9 @@
-// levelforge — progress reporting and interruption.
-//
-// Long operations take an `openvdb::util::NullInterrupter*` (OpenVDB's own convention): they call
-// start(name), then wasInterrupted(percent) at coarse steps from inside TBB loops, then end().
-// When wasInterrupted returns true the operation throws InterruptedError and discards its
-// partial result. StderrProgress prints "name: NN%" lines on stderr for the CLI.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Forwarding header, kept for one release (0.2): this header moved to
+///        <levelforge/core/Progress.h>. Include that instead; this one will be removed in 0.3.
 #pragma once
-
-#include <openvdb/util/NullInterrupter.h>
-
-#include <atomic>
-#include <chrono>
-#include <string>
-
-namespace levelforge {
-
-/// Prints coarse progress to stderr ("levelforge: <stage> 40%"), at most every `minStep` percent.
-class StderrProgress : public openvdb::util::NullInterrupter
-{
-public:
-    explicit StderrProgress(int minStep = 10, bool enabled = true);
-    void start(const char* name = nullptr) override;
-    void end() override;
-    bool wasInterrupted(int percent = -1) override;
-
-private:
-    std::string mName;
-    std::atomic<int> mLast{-1};
-    int mStep;
-    bool mEnabled;
-    std::chrono::steady_clock::time_point mStart;
-};
-
-namespace progress_internal {
-/// Calls interrupter->wasInterrupted(percent) if an interrupter is set; throws InterruptedError
-/// when it asks to stop.
-void check(openvdb::util::NullInterrupter* interrupter, int percent = -1);
-} // namespace progress_internal
-
-} // namespace levelforge
+#if !defined(LEVELFORGE_NO_MOVED_HEADER_WARNINGS)
+#pragma message("<levelforge/Progress.h> moved to <levelforge/core/Progress.h>; this forwarding header goes away in levelforge 0.3")
+#endif
+#include <levelforge/core/Progress.h>

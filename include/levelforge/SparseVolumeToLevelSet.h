@@ -1,70 +1,9 @@
-// levelforge — a scalar VDB grid (fog, density, CT/MRI stored sparsely, another tool's level set)
-// to a signed distance level set without ever allocating its dense bounding box.
-//
-// Paper: R. Satherley, M. W. Jones, "Vector-City Vector Distance Transform", CVIU 82 (2001):
-// §4.1–4.2 (the sub-voxel accurate shell: each cell of 8 samples split into 6 tetrahedra, the
-// interpolated iso-surface as 1–2 triangles per tetrahedron, exact closest-point vectors in a
-// shell around it) and §4.3 (the shell propagated by the 8-pass VCVDT), here on VDB topology:
-//
-//  1. cells: the cells (8 samples) whose corners lie on both sides of the iso-value are found
-//     among the leaves of the input tree and along the faces of its tiles whose side differs from
-//     the background's (nowhere else can a constant tree region hold a crossing), one voxel
-//     dilated; their triangles are the interpolated surface (src/IsoSurfaceCells.h, the same
-//     triangulation as the dense SubvoxelShell.h), a triangle soup in index space × voxel size;
-//  2. exact shell: the exact distance to that surface in a band of 1.5 voxels (VCVDT8; the dense
-//     path's shell R is the 26-neighbourhood of the surface voxels, the same reach) with the
-//     exact closest points and triangles (meshToLevelSetWithClosestPoints, Chang et al. 2008,
-//     on the sparse triangle lists), each voxel signed by its own sample's side of the iso-value
-//     (the voxel centres are the samples, so this is the inside flag of Eq. 2 — no pseudonormal
-//     is trusted on the unoriented soup), re-flood-filled;
-//  3. widening: to the requested widths with the sparse 8-pass VCVDT over the dilated VDB
-//     topology (VectorExpansion.h, through expandLevelSet with ExpansionMethod::Vector and the
-//     exact closest points and triangles of step 2). With VolumeDistanceMethod::Exact the exact
-//     band of step 2 already has the requested widths and step 3 is skipped.
-//
-// What is exact and what is approximate: the surface is the piecewise-linear interpolation of the
-// samples (as in the dense sub-voxel path); distances to it are exact (double, stored as float)
-// in the exact band and, with Exact, everywhere; beyond the exact band the VCVDT values are
-// distances to a point of the surface (never below the exact distance) refined to the exact
-// distance to a nearby triangle (VectorExpansion.h: mean < 1e-3 voxel, max < 0.1 voxel in the
-// tests). Signs are the samples' inside flags. Memory follows the band (plus the triangle soup of
-// the surface), not the bounding box: a grid with a 10⁵-voxel-wide empty gap converts like a
-// compact one.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Forwarding header, kept for one release (0.2): this header moved to
+///        <levelforge/volume/SparseVolumeToLevelSet.h>. Include that instead; this one will be removed in 0.3.
 #pragma once
-
-#include <levelforge/MeshToLevelSet.h>
-#include <levelforge/VolumeToLevelSet.h>
-
-#include <openvdb/openvdb.h>
-
-#include <cstdint>
-
-namespace levelforge {
-
-struct SparseVolumeToLevelSetStats
-{
-    uint64_t candidateCells = 0;  ///< cells examined (leaf and tile-face cells, dilated)
-    uint64_t surfaceCells = 0;    ///< cells the iso-surface crosses
-    uint64_t triangles = 0;       ///< triangles of the interpolated surface
-    uint64_t exactVoxels = 0;     ///< voxels of the exact band (step 2)
-    uint64_t activeVoxels = 0;    ///< voxels of the result
-    double exactBand = 0.0;       ///< half-width of the exact band, voxels
-    bool widened = false;         ///< step 3 ran (VCVDT8 with a width beyond the exact band)
-    MeshToLevelSetStats exact;    ///< the exact band's converter (stage times, evaluations)
-    double secondsSurface = 0, secondsExact = 0, secondsWiden = 0;
-};
-
-/// Converts a scalar grid to a level set as described above. Uses from `options`: iso,
-/// insideBelow, method (VCVDT8: exact band of min(1.5, width) voxels then the sparse VCVDT;
-/// Exact: the exact band at the full widths — its cost grows with the triangles within reach of
-/// each voxel, so wide exact bands on finely sampled surfaces are slow), exteriorWidth / interiorWidth (voxels), fillInterior
-/// (with either method the inside beyond the exact band comes from the sparse VCVDT),
-/// gridName, maxVoxels (limit on the band's voxels), interrupter; `subvoxel` must be true. The
-/// result has the input's transform. Throws InvalidArgumentError (another method, binary
-/// classification, non-uniform or non-linear transform, non-finite values — naming the voxel —,
-/// no surface at this iso-value), ResourceLimitError (band larger than maxVoxels),
-/// InterruptedError.
-openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, const VolumeToLevelSetOptions& options,
-                                               SparseVolumeToLevelSetStats* stats = nullptr);
-
-} // namespace levelforge
+#if !defined(LEVELFORGE_NO_MOVED_HEADER_WARNINGS)
+#pragma message("<levelforge/SparseVolumeToLevelSet.h> moved to <levelforge/volume/SparseVolumeToLevelSet.h>; this forwarding header goes away in levelforge 0.3")
+#endif
+#include <levelforge/volume/SparseVolumeToLevelSet.h>

@@ -1,62 +1,9 @@
-// levelforge — sub-voxel accurate shell of closest-point vectors around the iso-surface of a
-// scalar volume (Satherley & Jones, "Vector-City Vector Distance Transform", CVIU 2001, §4.1–4.2).
-//
-// The interpolated surface: every cell of 8 samples is split into 6 tetrahedra around its main
-// diagonal (Kuhn/Freudenthal; neighbouring cells agree on their shared faces, so the surface is
-// closed and without the ambiguities of Marching Cubes, as §4.1 says of Payne and Toga's
-// method); in each tetrahedron the samples >= iso are inside, and the surface is the 1 triangle
-// (1 or 3 corners inside) or 2 triangles (2 inside) through the edge crossings found by linear
-// interpolation. Vertices are in world space, so anisotropic spacing is exact.
-//
-// The shell R (§4.2): every inside voxel with an outside 26-neighbour, plus its 26-neighbours.
-// Each voxel of R gets the vector to its closest point on the triangulated surface (exact: the
-// cells are searched in growing windows until no unvisited cell can hold a closer point) and
-// the inside flag (f >= iso). All other voxels get +inf, ready for vectorDistanceTransform().
-//
-// Exact: the closest points of the shell voxels on the piecewise-linear surface (double
-// precision, stored as float offsets). Approximate: the surface itself (linear interpolation in
-// tetrahedra of the sampled field), and everything the vector transform later propagates.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Forwarding header, kept for one release (0.2): this header moved to
+///        <levelforge/volume/SubvoxelShell.h>. Include that instead; this one will be removed in 0.3.
 #pragma once
-
-#include <levelforge/DenseVolume.h>
-#include <levelforge/TriangleMesh.h>
-#include <levelforge/VectorDistanceTransform.h>
-
-#include <openvdb/util/NullInterrupter.h>
-
-#include <cstdint>
-
-namespace levelforge {
-
-struct SubvoxelShellOptions
-{
-    /// Iso-value τ of Eq. 2: samples >= iso are inside the object (negative distances).
-    float iso = 0.0f;
-    /// Inside is f <= iso instead (e.g. a level set or a dark object on a bright background).
-    bool insideBelow = false;
-    /// Optional interruption; not owned.
-    openvdb::util::NullInterrupter* interrupter = nullptr;
-};
-
-struct SubvoxelShellStats
-{
-    uint64_t surfaceCells = 0;   ///< cells the surface passes through
-    uint64_t triangles = 0;      ///< triangles of the interpolated surface
-    uint64_t shellVoxels = 0;    ///< |R|
-    uint64_t insideVoxels = 0;   ///< voxels with the inside flag
-    double seconds = 0;
-};
-
-/// Inside flags: 1 where the sample is inside (f >= iso, or f <= iso with insideBelow).
-MaskVolume insideFlags(const ScalarVolume& field, const SubvoxelShellOptions& options);
-
-/// The triangulated interpolated surface (world coordinates, one triangle soup, 3 points per
-/// triangle). Throws InvalidArgumentError (empty volume, bad spacing, NaN samples).
-TriangleMesh isoSurfaceTriangles(const ScalarVolume& field, const SubvoxelShellOptions& options);
-
-/// The shell of exact closest-point vectors (voxel units; d2 in world units²) and +inf elsewhere.
-/// Throws InvalidArgumentError (empty volume, bad spacing, NaN samples), InterruptedError.
-VectorVolume subvoxelShell(const ScalarVolume& field, const SubvoxelShellOptions& options,
-                           SubvoxelShellStats* stats = nullptr);
-
-} // namespace levelforge
+#if !defined(LEVELFORGE_NO_MOVED_HEADER_WARNINGS)
+#pragma message("<levelforge/SubvoxelShell.h> moved to <levelforge/volume/SubvoxelShell.h>; this forwarding header goes away in levelforge 0.3")
+#endif
+#include <levelforge/volume/SubvoxelShell.h>

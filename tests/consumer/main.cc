@@ -1,6 +1,6 @@
 // Converts a built-in sphere through the installed library; exits 0 when the band is sane.
-#include <levelforge/MeshShapes.h>
-#include <levelforge/MeshToLevelSet.h>
+#include <levelforge/reference/MeshShapes.h>
+#include <levelforge/mesh/MeshToLevelSet.h>
 
 #include <cstdio>
 

@@ -1,0 +1,104 @@
+// levelforge — the front door: triangle mesh → exact narrow-band signed distance FloatGrid.
+//
+// Algorithm: Chang, Cha, Ihm, "Computing Local Signed Distance Fields for Large Polygonal
+// Models", CGF 2008 (../shared/papers/000_*), in sparse VDB trees:
+//   1. microtriangle voxelization (§3.1, MicrotriangleVoxelizer.h) finds every boundary cell;
+//   2. two-pass triangle lists per boundary cell (§3.2, TriangleListTree.h);
+//   3. layered, culled search of nearby boundary cells for every band voxel (§4.1, generalised
+//      from the paper's 1-voxel "local cells" to any band width; LocalSignedDistance.h);
+//   4. sign from the angle-weighted pseudonormal of the closest feature (§4.2, PseudoNormals.h).
+//
+// What is exact: every active voxel holds the Euclidean distance (computed in double precision,
+// stored as float) to the closest triangle, signed by the pseudonormal rule. That rule gives the
+// true inside/outside for closed, consistently oriented, non-self-intersecting meshes; for open
+// or broken meshes the sign is the pseudonormal's verdict and may be inconsistent far from
+// the surface. The band is exact out to the requested widths: a voxel is active iff
+// -interiorWidth < d/voxelSize < exteriorWidth.
+//
+// Output follows OpenVDB's level-set conventions: GRID_LEVEL_SET class, world-unit values,
+// negative inside, background = exteriorWidth * voxelSize, inactive voxels and tiles carry
+// ±background (signed flood fill), voxel centres at integer index coordinates.
+#pragma once
+
+#include <levelforge/core/TriangleMesh.h>
+
+#include <openvdb/openvdb.h>
+#include <openvdb/util/NullInterrupter.h>
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+namespace levelforge {
+
+struct MeshToLevelSetOptions
+{
+    /// Voxel edge length, world units. If <= 0 (default) it is derived from voxelCount.
+    double voxelSize = 0.0;
+    /// Voxels along the longest axis of the mesh bounding box; used when voxelSize <= 0.
+    int voxelCount = 0;
+    /// Half-width of the band outside the surface, in voxels (OpenVDB default 3).
+    float exteriorWidth = 3.0f;
+    /// Half-width of the band inside the surface, in voxels (OpenVDB default 3).
+    float interiorWidth = 3.0f;
+    /// Name stored in the grid (Houdini's VDB from Polygons uses "surface").
+    std::string gridName = "surface";
+    /// Refuse to build grids with more candidate voxels than this (protects memory); 0 = no limit.
+    uint64_t maxVoxels = 2'000'000'000ull;
+    /// Optional progress / interruption (OpenVDB convention). Not owned.
+    openvdb::util::NullInterrupter* interrupter = nullptr;
+};
+
+/// Counters in the spirit of the paper's Tables 1–3, filled by meshToLevelSet().
+struct MeshToLevelSetStats
+{
+    double voxelSize = 0.0;               ///< world units
+    uint64_t triangles = 0;               ///< triangles used (degenerate ones skipped)
+    uint64_t skippedDegenerate = 0;       ///< zero-area triangles left out
+    uint64_t microtriangles = 0;          ///< Table 2 "M-tri"
+    std::array<uint64_t, 4> caseCounts{}; ///< microtriangles with I = 3, 2, 1, 0 (cases 1..4)
+    uint64_t boundaryCells = 0;           ///< Table 1 "B-cell"
+    uint64_t triangleListEntries = 0;     ///< total length of all triangle lists
+    uint64_t localCells = 0;              ///< boundary cells + their 6-neighbours (Table 3 "L-cell")
+    uint64_t candidateVoxels = 0;         ///< voxels searched (a boundary cell lies within the band limit)
+    uint64_t activeVoxels = 0;            ///< voxels in the output band
+    uint64_t distanceEvaluations = 0;     ///< exact point–triangle distance evaluations
+    uint64_t boundTests = 0;              ///< cheap lower-bound tests that avoided an evaluation
+    /// Wall-clock seconds: set-up + pseudonormals + voxelization pass 1; numbering + list pass 2
+    /// + sorting; distances; tree assembly and flood fill.
+    double secondsVoxelize = 0, secondsLists = 0, secondsDistance = 0, secondsFinish = 0;
+    double evaluationsPerActiveVoxel() const
+    {
+        return activeVoxels ? double(distanceEvaluations) / double(activeVoxels) : 0.0;
+    }
+};
+
+/// Voxel size (world units) that meshToLevelSet would use for this mesh and these options.
+/// Throws InvalidArgumentError if neither a positive voxel size nor a positive count is given.
+double resolveVoxelSize(const TriangleMesh& mesh, const MeshToLevelSetOptions& options);
+
+/// Converts a triangle mesh to an exact narrow-band level set (see the file comment).
+/// Throws InvalidArgumentError (bad options), InvalidMeshError (empty mesh, NaN, bad index),
+/// ResourceLimitError (band too large), InterruptedError.
+openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh,
+                                       const MeshToLevelSetOptions& options = {},
+                                       MeshToLevelSetStats* stats = nullptr);
+
+/// A level set and, for each of its active voxels, the offset from the voxel centre to the
+/// closest point of the mesh (index space, voxel units; the point of the triangle that decided
+/// the exact distance) and that triangle's index in mesh.triangles. Both grids have the same
+/// transform and active topology as the level set.
+struct LevelSetWithClosestPoints
+{
+    openvdb::FloatGrid::Ptr levelSet;
+    openvdb::Vec3fGrid::Ptr closestPoints;
+    openvdb::Int32Grid::Ptr closestTriangles;
+};
+
+/// meshToLevelSet() that also returns the closest-point offsets — the exact shell of vectors
+/// that the Vector expansion (VectorExpansion.h, Satherley–Jones §4.3) propagates.
+LevelSetWithClosestPoints meshToLevelSetWithClosestPoints(const TriangleMesh& mesh,
+                                                          const MeshToLevelSetOptions& options = {},
+                                                          MeshToLevelSetStats* stats = nullptr);
+
+} // namespace levelforge

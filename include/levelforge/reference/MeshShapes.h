@@ -1,0 +1,69 @@
+// levelforge — procedural meshes for tests, benchmarks and the demo.
+//
+// Every closed shape here is watertight with shared vertices (each edge used by exactly two
+// triangles, once in each direction), consistently wound counter-clockwise seen from outside
+// (so its divergence-theorem signed volume is positive), free of degenerate triangles and of
+// self-intersections; validateMesh(shape).closed() holds. Each sets mesh.source to a short
+// description such as "<icosphere r=1 s=3>". Invalid parameters throw InvalidArgumentError.
+//
+// Analytic references for tests (the meshes are inscribed polyhedra, so their volume and area
+// converge to these from below as the resolution grows):
+//   icosphere    V = 4/3 pi r^3,       A = 4 pi r^2
+//   box          V = dx dy dz,         A = 2 (dx dy + dy dz + dz dx)   (exact)
+//   torus        V = 2 pi^2 R r^2,     A = 4 pi^2 R r
+//   torus knot   V = pi t^2 L,         A = 2 pi t L   (L = centre-line length, Pappus/Weyl tube
+//                formulas, exact for a tube thinner than the curve's radius of curvature and
+//                without self-contact)
+#pragma once
+
+#include <levelforge/core/TriangleMesh.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace levelforge {
+
+/// Sphere from a subdivided icosahedron: 10*4^s + 2 vertices, 20*4^s triangles, every vertex on
+/// the sphere. subdivisions in [0, 10].
+TriangleMesh makeIcosphere(const Vec3d& center, double radius, int subdivisions);
+
+/// Axis-aligned box [min, max] with each edge split into @a segments (>= 1) equal parts:
+/// 12 * segments^2 triangles (12 for segments = 1).
+TriangleMesh makeBox(const Vec3d& min, const Vec3d& max, int segments = 1);
+
+/// Torus around the z axis through @a center: major radius R (centre of the tube), minor radius
+/// r (tube), 0 < r < R. Vertex i * minorSegments + j lies at major angle 2 pi i / majorSegments,
+/// minor angle 2 pi j / minorSegments. Segments >= 3.
+TriangleMesh makeTorus(const Vec3d& center, double majorRadius, double minorRadius,
+                       int majorSegments, int minorSegments);
+
+/// The (p, q) torus knot tube, centred at the origin, the project's default demo mesh. The centre
+/// line is C(t) = ((R + R/2 cos qt) cos pt, (R + R/2 cos qt) sin pt, R/2 sin qt), t in [0, 2 pi),
+/// R = radius, i.e. it winds p times around the z axis and q times through the hole of a torus
+/// with radii R and R/2. The tube has radius tubeRadius; vertex i * tubeSegments + j is ring i
+/// (t = 2 pi i / segments), angle 2 pi j / tubeSegments, and ring i is centred on C(t_i).
+/// Requirements: p, q >= 1 and coprime (otherwise it is a link, not a knot); 0 < tubeRadius;
+/// segments >= 3; tubeSegments >= 3. The defaults (trefoil, tube 0.25) are free of
+/// self-intersections: strands stay more than 0.8 apart, the curvature radius exceeds 0.7.
+TriangleMesh makeTorusKnot(int p = 2, int q = 3, double radius = 1.0, double tubeRadius = 0.25,
+                           int segments = 256, int tubeSegments = 24);
+
+/// Centre line point of makeTorusKnot() at parameter t (same p, q, radius).
+Vec3d torusKnotPoint(int p, int q, double radius, double t);
+
+/// A soup of @a count independent triangles (3 * count vertices, nothing shared), for
+/// voxelization tests. Deterministic for a given seed on every platform (std::mt19937_64 and
+/// an explicit conversion to doubles). Every vertex lies inside @a box and every edge is at most
+/// @a maxEdge long (vertices are drawn in a ball of radius maxEdge / 2 around a centre drawn
+/// uniformly in the box, then clamped into the box). Orientation is random; triangles may be
+/// arbitrarily thin but are never degenerate (resampled if they are).
+TriangleMesh makeRandomTriangles(uint32_t count, uint64_t seed, const BBoxd& box, double maxEdge);
+
+/// Signed volume enclosed by @a mesh by the divergence theorem (positive for a closed mesh wound
+/// counter-clockwise seen from outside). Meaningful for closed meshes only.
+double signedVolume(const TriangleMesh& mesh);
+
+/// Total area of the triangles of @a mesh.
+double surfaceArea(const TriangleMesh& mesh);
+
+} // namespace levelforge

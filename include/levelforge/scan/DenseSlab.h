@@ -1,0 +1,101 @@
+// levelforge — dense slabs: the unit of work a scan-conversion backend computes.
+//
+// T4 scan conversion (Erleben & Dohlmann, ../shared/papers/001_*; TetScanConversion.h) slices
+// tetrahedral shells with the z-planes of the grid. The sweep groups the resulting convex
+// cross-sections by dense slab — a box of voxels, z-range x xy-rectangle, aligned to VDB leaf
+// boundaries — and hands each slab with its items to a SlabBackend, which fills the slab's
+// distances. The slab is then scattered back into the sparse FloatGrid.
+//
+// Contract of a backend (what a GPU twin must reproduce):
+//   * coverage: voxel (i, j, z) of the slab is covered by an item on plane z iff its centre
+//     (i, j) lies in the closed convex polygon (exact scanline spans with a 1e-7 voxel outward
+//     tolerance; no enlargement of the polygon). This is exact point sampling of the shell, so
+//     no voxel centre inside a shell is missed (no aliasing).
+//   * value: for every covered voxel, the exact closest point on the item's triangle
+//     (closestPointOnTriangle, world coordinates, voxel centre = index * voxelSize) and the sign
+//     of dot(p - c, n) with n the pseudonormal of the closest feature (vertex, edge or face); the
+//     slab keeps the item with the smallest distance, ties broken by the smaller triangle index,
+//     so the result does not depend on the item order or the number of threads.
+//   * the CPU backend compares squared distances in double precision and stores double distances
+//     (the band test -interior < d/h < exterior is made on them, then they are stored as float,
+//     exactly like the Chang path); a float GPU backend agrees within float rounding.
+#pragma once
+
+#include <levelforge/core/PseudoNormals.h>
+#include <levelforge/core/TriangleMesh.h>
+
+#include <openvdb/openvdb.h>
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace levelforge {
+
+/// A convex cross-section of one tetrahedron on the plane z (index space: voxel centres at
+/// integer coordinates), tagged with the triangle whose distance it evaluates.
+struct CrossSection
+{
+    static constexpr int kMaxVertices = 16;
+    uint32_t triangle = 0;
+    int32_t z = 0;
+    uint32_t count = 0;         ///< 1..16 vertices (3 or 4 for a plane slice; up to 16 for a
+                                ///< conservative cell footprint, TetScanOptions::conservative)
+    std::array<double, kMaxVertices> x{}, y{}; ///< polygon vertices in order (either orientation)
+};
+
+/// Per-triangle data a backend needs, flat (GPU-friendly), world units.
+struct SlabTriangles
+{
+    double voxelSize = 1.0;
+    std::vector<Vec3d> corners; ///< 3 per triangle
+    std::vector<Vec3d> normals; ///< 7 per triangle, in TriangleFeature order (face, v0, v1, v2, e01, e12, e20)
+
+    static SlabTriangles build(const TriangleMesh& mesh, const PseudoNormals& normals, double voxelSize);
+};
+
+/// A dense box of voxels. Index of voxel (x, y, z): ((x - x0) * dimY + (y - y0)) * dimZ + (z - z0).
+struct DenseSlab
+{
+    static constexpr uint32_t kNone = ~0u;
+    openvdb::CoordBBox box;
+    std::vector<double> dist;   ///< signed distance, world units; +inf where nothing covered it
+                                ///< (double so that band membership is decided before rounding;
+                                ///< a float backend writes its float values here)
+    std::vector<uint32_t> tri;  ///< triangle that produced dist, kNone where uncovered
+    uint64_t rasterized = 0;    ///< (voxel, item) evaluations performed by fill()
+
+    void reset(const openvdb::CoordBBox& b);
+    size_t size() const { return dist.size(); }
+    size_t index(const openvdb::Coord& c) const
+    {
+        const openvdb::Coord d = box.dim();
+        return (size_t(c.x() - box.min().x()) * size_t(d.y()) + size_t(c.y() - box.min().y())) * size_t(d.z()) +
+               size_t(c.z() - box.min().z());
+    }
+};
+
+/// Rasterization helper shared by backends: the closed x-interval [xl, xr] of the convex polygon
+/// on the row y (with tolerance tol). False if the row misses the polygon.
+bool crossSectionSpan(const CrossSection& cs, double y, double tol, double& xl, double& xr);
+
+/// Fills dense slabs. fill() is called concurrently for different slabs and must be thread-safe.
+class SlabBackend
+{
+public:
+    virtual ~SlabBackend() = default;
+    virtual const char* name() const = 0;
+    /// `slab` has been reset to its box; items all have z inside the box.
+    virtual void fill(DenseSlab& slab, const CrossSection* items, size_t count, const SlabTriangles& tris) const = 0;
+};
+
+/// The reference backend: serial within a slab (slabs run in parallel under TBB).
+class CpuSlabBackend : public SlabBackend
+{
+public:
+    const char* name() const override { return "cpu"; }
+    void fill(DenseSlab& slab, const CrossSection* items, size_t count, const SlabTriangles& tris) const override;
+};
+
+} // namespace levelforge

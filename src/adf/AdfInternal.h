@@ -1,0 +1,122 @@
+// Private to src/Adf*.cc and src/AdaptiveDistanceField.cc: the reconstruction over an ADF tree
+// and the value pipeline shared by the mesh builder and CSG. See AdaptiveDistanceField.h.
+#pragma once
+
+#include <levelforge/adf/AdaptiveDistanceField.h>
+
+#include <openvdb/openvdb.h>
+#include <openvdb/tree/ValueAccessor.h>
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <vector>
+
+namespace levelforge {
+namespace adf_internal {
+
+using openvdb::Coord;
+using openvdb::CoordBBox;
+using FloatTree = openvdb::FloatTree;
+using FloatLeaf = FloatTree::LeafNodeType;
+using Internal2 = FloatTree::RootNodeType::ChildNodeType;
+using Internal1 = Internal2::ChildNodeType;
+using LeafMask = FloatLeaf::NodeMaskType;
+using Clock = std::chrono::steady_clock;
+
+constexpr uint32_t kNone = 0xffffffffu;
+constexpr const char* kAdfMetaKey = "levelforge:adf";
+constexpr const char* kAdfVersion = "yin2011-vdb-tiles-1";
+
+inline double secondsSince(Clock::time_point t0)
+{
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+/// Index into kAdfCellSize, -1 for other sizes.
+int levelOfSize(int size);
+
+/// A reconstruction cell: size 1, 2, 4, 8 or 128 (0 = none), minimum corner (index space).
+struct CellInfo
+{
+    int size = 0;
+    Coord origin{0, 0, 0};
+};
+
+/// The cell holding unit cell c inside a leaf (sizes 1, 2, 4 from the refined-cell mask).
+CellInfo cellInLeaf(const FloatLeaf& leaf, const Coord& c);
+
+/// Reads an ADF tree (one per thread: it owns an unregistered accessor).
+class Reconstruction
+{
+public:
+    Reconstruction(const FloatTree& tree, const CoordBBox& domain) : mAcc(tree), mDomain(domain) {}
+
+    /// The cell holding unit cell c (c inside the domain's cells [min, max)).
+    CellInfo cellAt(const Coord& c);
+    /// The stored value at lattice point p, if p is a storage location (leaf voxel or tile origin).
+    bool stored(const Coord& p, float& v);
+    /// The value of lattice point p: stored, or the trilinear value of the coarse cell it hangs on.
+    double value(const Coord& p);
+    /// Trilinear value of cell X at q (index space); dvdt = derivative w.r.t. q/size.
+    double interp(const CellInfo& X, const Vec3d& q, Vec3d* dvdt);
+    /// The reconstruction at any index-space point (clamped to the domain + distance to it).
+    double distanceIndex(const Vec3d& q, Vec3d* gradIndex, int* level);
+
+    static double trilinear(const double* v, const Vec3d& t, Vec3d* dvdt);
+    static bool subdividedIn(const FloatLeaf& leaf, int x0, int y0, int z0, int n);
+
+private:
+    Coord clampCell(const Coord& p) const;
+    openvdb::tree::ValueAccessor<const FloatTree, false> mAcc;
+    CoordBBox mDomain;
+};
+
+/// Which blocks are leaves (with their refined-cell masks), which 128³ blocks are internal-1
+/// nodes and which level-2 tiles; domain = lattice points [min, max], max on 128 multiples.
+struct Layout
+{
+    CoordBBox domain;
+    std::vector<Coord> leafOrigins;
+    std::vector<LeafMask> leafMasks;
+    std::vector<Coord> subdividedL2; ///< input: forced ones; finish() adds the leaves' blocks
+    std::vector<Coord> tileL2;       ///< filled by finish()
+    /// Sorts and merges leaves, derives the internal-1 nodes and tiles (domain + one storage
+    /// layer past its maximum faces).
+    void finish();
+};
+
+/// The domain of a set of cells: box grown by max(9, padding) voxels, rounded out to 128.
+void makeDomain(Layout& layout, const CoordBBox& cellBox, double paddingVoxels);
+FloatTree::Ptr createTree(const Layout& layout, float background);
+
+/// Source of the free samples.
+class SampleProvider
+{
+public:
+    virtual ~SampleProvider() = default;
+    /// Fills out[off] for every off with isFree[off] (world units, signed). Called in parallel.
+    virtual void leafSamples(size_t leafIndex, FloatLeaf& leaf, const uint8_t* isFree, float* out) = 0;
+    /// Called once after all leaves, before the tiles.
+    virtual void afterLeaves(FloatTree&) {}
+    /// The sample at a free tile origin. Called in parallel.
+    virtual double tileSample(const Coord& p) = 0;
+};
+
+struct PipelineResult
+{
+    uint64_t hanging = 0, level1Tiles = 0, level2Tiles = 0;
+    std::array<uint64_t, kAdfLevels> cells{};
+    double secondsLeaves = 0, secondsTiles = 0, secondsHanging = 0;
+};
+
+/// Classifies every storage location of the tree (free corner / hanging / unused), asks the
+/// provider for the free samples and resolves the hanging ones, coarsest cells first.
+PipelineResult fillValues(FloatTree& tree, const Layout& layout, SampleProvider& provider,
+                          openvdb::util::NullInterrupter* interrupter);
+
+void stampAdfMetadata(openvdb::FloatGrid& grid, const CoordBBox& domain,
+                      const std::array<double, kAdfLevels>& bounds);
+
+} // namespace adf_internal
+} // namespace levelforge

@@ -1,0 +1,185 @@
+// Exact signed distance reference (BVH + brute force). See ExactReference.h.
+#include <levelforge/reference/ExactReference.h>
+#include <levelforge/core/TriangleDistance.h>
+
+#include <openvdb/tree/LeafManager.h>
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace levelforge {
+
+ExactReference::ExactReference(const TriangleMesh& mesh)
+    : mMesh(mesh), mNormals(new PseudoNormals(mesh))
+{
+    const size_t nt = mesh.triangles.size();
+    std::vector<BBoxd> boxes(nt);
+    std::vector<Vec3d> centroid(nt);
+    for (uint32_t t = 0; t < nt; ++t) {
+        if (mNormals->isDegenerate(t)) continue;
+        BBoxd b;
+        for (int k = 0; k < 3; ++k) b.expand(mesh.points[mesh.triangles[t][k]]);
+        boxes[t] = b;
+        centroid[t] = b.getCenter();
+        mOrder.push_back(t);
+    }
+    if (mOrder.empty()) return;
+    // Top-down median split on the longest axis of the centroid box; leaves of ≤ 4 triangles.
+    struct Job { uint32_t node, first, count; };
+    mNodes.push_back({});
+    std::vector<Job> stack{{0, 0, uint32_t(mOrder.size())}};
+    while (!stack.empty()) {
+        const Job j = stack.back();
+        stack.pop_back();
+        BBoxd box, cbox;
+        for (uint32_t i = j.first; i < j.first + j.count; ++i) {
+            box.expand(boxes[mOrder[i]]);
+            cbox.expand(centroid[mOrder[i]]);
+        }
+        Node& n = mNodes[j.node];
+        n.box = box;
+        n.first = j.first;
+        n.count = j.count;
+        n.left = n.right = 0;
+        if (j.count <= 4) continue;
+        const int axis = int(cbox.maxExtent());
+        const uint32_t mid = j.first + j.count / 2;
+        std::nth_element(mOrder.begin() + j.first, mOrder.begin() + mid, mOrder.begin() + j.first + j.count,
+                         [&](uint32_t a, uint32_t b) {
+                             return centroid[a][axis] < centroid[b][axis] ||
+                                    (centroid[a][axis] == centroid[b][axis] && a < b);
+                         });
+        const uint32_t left = uint32_t(mNodes.size());
+        mNodes.push_back({});
+        mNodes.push_back({});
+        mNodes[j.node].left = left;
+        mNodes[j.node].right = left + 1;
+        mNodes[j.node].count = 0;
+        stack.push_back({left, j.first, mid - j.first});
+        stack.push_back({left + 1, mid, j.first + j.count - mid});
+    }
+}
+
+ExactReference::~ExactReference() = default;
+
+namespace reference_internal {
+/// Running minimum over triangles; ties go to the lowest triangle id (deterministic).
+struct Closest
+{
+    const TriangleMesh& mesh;
+    const Vec3d& p;
+    double d2 = std::numeric_limits<double>::infinity();
+    TriangleClosestPoint cp{Vec3d(0.0), 0.0, TriangleFeature::Face};
+    uint32_t tri = ~0u;
+
+    Closest(const TriangleMesh& m, const Vec3d& q) : mesh(m), p(q) {}
+    void consider(uint32_t t)
+    {
+        const Vec3I& v = mesh.triangles[t];
+        const TriangleClosestPoint c = closestPointOnTriangle(p, mesh.points[v[0]], mesh.points[v[1]], mesh.points[v[2]]);
+        if (c.distanceSqr < d2 || (c.distanceSqr == d2 && t < tri)) { d2 = c.distanceSqr; cp = c; tri = t; }
+    }
+    ExactReference::Result result(const PseudoNormals& normals) const
+    {
+        ExactReference::Result r;
+        if (tri == ~0u) return r;
+        r.triangle = tri;
+        r.closestPoint = cp.point;
+        r.distance = std::sqrt(d2) * (normals.isInside(tri, cp, p) ? -1.0 : 1.0);
+        return r;
+    }
+};
+} // namespace reference_internal
+
+ExactReference::Result ExactReference::query(const Vec3d& p) const
+{
+    if (mNodes.empty()) return Result();
+    reference_internal::Closest best(mMesh, p);
+    uint32_t stack[128];
+    int sp = 0;
+    stack[sp++] = 0;
+    while (sp > 0) {
+        const Node& n = mNodes[stack[--sp]];
+        // Strict: a box at exactly the best distance may hold a lower-id tie (same answer as bruteForce).
+        if (boxDistanceSqr(p, n.box.min(), n.box.max()) > best.d2) continue;
+        if (n.count > 0) {
+            for (uint32_t i = n.first; i < n.first + n.count; ++i) best.consider(mOrder[i]);
+            continue;
+        }
+        const Node& l = mNodes[n.left];
+        const Node& r = mNodes[n.right];
+        const double dl = boxDistanceSqr(p, l.box.min(), l.box.max());
+        const double dr = boxDistanceSqr(p, r.box.min(), r.box.max());
+        // Push the farther child first so the nearer one is visited first.
+        if (dl < dr) { stack[sp++] = n.right; stack[sp++] = n.left; }
+        else { stack[sp++] = n.left; stack[sp++] = n.right; }
+    }
+    return best.result(*mNormals);
+}
+
+ExactReference::Result ExactReference::bruteForce(const Vec3d& p) const
+{
+    reference_internal::Closest best(mMesh, p);
+    for (uint32_t t : mOrder) best.consider(t);
+    return best.result(*mNormals);
+}
+
+BandErrorReport compareToReference(const openvdb::FloatGrid& grid, const ExactReference& reference,
+                                   double exteriorWidth, double interiorWidth, uint64_t stride)
+{
+    using openvdb::Coord;
+    const double h = grid.voxelSize()[0];
+    const double tol = 1e-6; // voxels: boundary tolerance for band membership and sign
+    struct Acc { uint64_t n = 0, sign = 0, extra = 0; double maxE = 0, sumE = 0; std::vector<Coord> missing; };
+    tbb::enumerable_thread_specific<Acc> tls;
+    openvdb::tree::LeafManager<const openvdb::FloatTree> leafs(grid.tree());
+    if (stride == 0) stride = 1;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, leafs.leafCount(), 16), [&](const tbb::blocked_range<size_t>& r) {
+        Acc& acc = tls.local();
+        openvdb::tree::ValueAccessor<const openvdb::FloatTree> va(grid.tree());
+        for (size_t l = r.begin(); l != r.end(); ++l) {
+            for (auto it = leafs.leaf(l).cbeginValueOn(); it; ++it) {
+                const Coord c = it.getCoord();
+                if (stride > 1 && (uint64_t(c.x() * 73856093u ^ c.y() * 19349663u ^ c.z() * 83492791u) % stride) != 0)
+                    continue;
+                const Vec3d wp = grid.indexToWorld(c);
+                const double ref = reference.signedDistance(wp) / h;
+                const double val = double(*it) / h;
+                const double e = std::abs(val - ref);
+                ++acc.n;
+                acc.sumE += e;
+                acc.maxE = std::max(acc.maxE, e);
+                if (std::abs(ref) > tol && ((ref < 0) != (val < 0))) ++acc.sign;
+                if (ref >= exteriorWidth + tol || ref <= -interiorWidth - tol) ++acc.extra;
+                static const Coord nb[6] = {Coord(1, 0, 0), Coord(-1, 0, 0), Coord(0, 1, 0),
+                                            Coord(0, -1, 0), Coord(0, 0, 1), Coord(0, 0, -1)};
+                for (const Coord& o : nb) {
+                    const Coord q = c + o;
+                    if (va.isValueOn(q)) continue;
+                    const double rq = reference.signedDistance(grid.indexToWorld(q)) / h;
+                    if (rq < exteriorWidth - tol && rq > -interiorWidth + tol) acc.missing.push_back(q);
+                }
+            }
+        }
+    });
+    BandErrorReport rep;
+    std::vector<Coord> missing;
+    for (Acc& a : tls) {
+        rep.checkedVoxels += a.n;
+        rep.signErrors += a.sign;
+        rep.extraVoxels += a.extra;
+        rep.maxError = std::max(rep.maxError, a.maxE);
+        rep.meanError += a.sumE;
+        missing.insert(missing.end(), a.missing.begin(), a.missing.end());
+    }
+    std::sort(missing.begin(), missing.end());
+    rep.missingVoxels = uint64_t(std::unique(missing.begin(), missing.end()) - missing.begin());
+    if (rep.checkedVoxels) rep.meanError /= double(rep.checkedVoxels);
+    return rep;
+}
+
+} // namespace levelforge

@@ -1,0 +1,358 @@
+// levelforge — scalar VDB grid to level set on sparse topology (see SparseVolumeToLevelSet.h).
+#include <levelforge/volume/SparseVolumeToLevelSet.h>
+
+#include "detail/IsoSurfaceCells.h"
+
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/expand/ExpandLevelSet.h>
+#include <levelforge/mesh/MeshToLevelSet.h>
+#include <levelforge/core/Progress.h>
+
+#include <openvdb/tools/Morphology.h>
+#include <openvdb/tools/SignedFloodFill.h>
+#include <openvdb/tree/LeafManager.h>
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <sstream>
+#include <unordered_map>
+#include <vector>
+
+namespace levelforge {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::string gridLabel(const openvdb::FloatGrid& g)
+{
+    return "grid '" + g.getName() + "'";
+}
+
+/// Uniform voxel size of an axis-aligned linear transform (translation allowed), else throws.
+double uniformVoxelSize(const openvdb::FloatGrid& field)
+{
+    const openvdb::math::Transform& xf = field.transform();
+    if (!xf.isLinear())
+        throw InvalidArgumentError(gridLabel(field) + ": the transform (" + xf.mapType() +
+                                   ") is not linear; the sparse conversion needs uniform voxels");
+    const openvdb::Mat4d m = xf.baseMap()->getAffineMap()->getMat4();
+    const double h = m[0][0];
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) {
+            const double want = r == c ? h : 0.0;
+            if (std::abs(m[r][c] - want) > 1e-9 * std::abs(h)) {
+                std::ostringstream os;
+                os << gridLabel(field) << ": the voxels are not uniform axis-aligned cubes (voxel size "
+                   << field.voxelSize() << "); the sparse conversion needs uniform voxels (the dense path "
+                   << "handles anisotropic spacing)";
+                throw InvalidArgumentError(os.str());
+            }
+        }
+    if (!(h > 0.0) || !std::isfinite(h))
+        throw InvalidArgumentError(gridLabel(field) + ": the voxel size must be positive");
+    return h;
+}
+
+/// Throws on the first non-finite value (leaves, tiles, background), naming where it is.
+void requireFinite(const openvdb::FloatGrid& field)
+{
+    if (!std::isfinite(field.background()))
+        throw InvalidArgumentError(gridLabel(field) + ": the background value is not finite");
+    for (auto it = field.tree().cbeginValueAll(); it; ++it) {
+        if (std::isfinite(*it)) continue;
+        std::ostringstream os;
+        os << gridLabel(field) << ": " << (it.isVoxelValue() ? "voxel " : "tile at ") << it.getCoord()
+           << " holds a non-finite value (" << *it << ")";
+        throw InvalidArgumentError(os.str());
+    }
+}
+
+/// A tree of background `bg` holding, leaf by leaf, the active voxels of `src` for which
+/// value(coord, v) is not NaN, with that value (TBB over the leaves; no flood fill yet).
+template<typename F>
+openvdb::FloatTree::Ptr keptVoxels(const openvdb::FloatTree& src, float bg, const F& value)
+{
+    using Leaf = openvdb::FloatTree::LeafNodeType;
+    openvdb::tree::LeafManager<const openvdb::FloatTree> lm(src);
+    std::vector<std::unique_ptr<Leaf>> leaves(lm.leafCount());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, lm.leafCount(), 16), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            std::unique_ptr<Leaf> dst;
+            for (auto v = lm.leaf(i).cbeginValueOn(); v; ++v) {
+                const float x = value(v.getCoord(), *v);
+                if (std::isnan(x)) continue;
+                if (!dst) dst = std::make_unique<Leaf>(lm.leaf(i).origin(), bg, false);
+                dst->setValueOn(v.pos(), x);
+            }
+            leaves[i] = std::move(dst);
+        }
+    });
+    auto tree = std::make_shared<openvdb::FloatTree>(bg);
+    for (auto& l : leaves)
+        if (l) tree->addLeaf(l.release());
+    return tree;
+}
+
+/// The flood-filled level-set grid of `tree`.
+openvdb::FloatGrid::Ptr levelSetGrid(const openvdb::FloatTree::Ptr& tree, openvdb::math::Transform::Ptr xf,
+                                     const std::string& name)
+{
+    openvdb::tools::signedFloodFill(*tree);
+    auto grid = openvdb::FloatGrid::create(tree);
+    grid->setTransform(xf);
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    grid->setName(name);
+    return grid;
+}
+
+struct KeyHash
+{
+    size_t operator()(const std::array<int64_t, 3>& k) const
+    {
+        uint64_t h = uint64_t(k[0]) * 0x9E3779B97F4A7C15ull;
+        h ^= uint64_t(k[1]) + 0x7F4A7C159E3779B9ull + (h << 6) + (h >> 2);
+        h ^= uint64_t(k[2]) * 0xC2B2AE3D27D4EB4Full + (h << 6) + (h >> 2);
+        return size_t(h);
+    }
+};
+
+} // namespace
+
+openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, const VolumeToLevelSetOptions& o,
+                                               SparseVolumeToLevelSetStats* statsOut)
+{
+    using openvdb::Coord;
+    openvdb::initialize();
+    if (!o.subvoxel)
+        throw InvalidArgumentError("the sparse conversion uses the sub-voxel shell; binary feature voxels are "
+                                   "available on the dense path only");
+    if (o.method != VolumeDistanceMethod::VCVDT8 && o.method != VolumeDistanceMethod::Exact)
+        throw InvalidArgumentError(std::string("the sparse conversion supports vcvdt8 and exact, not ") +
+                                   volumeDistanceMethodName(o.method));
+    for (double w : {o.exteriorWidth, o.interiorWidth})
+        if (!(w > 0.0) || !std::isfinite(w) || w > 1e5) {
+            std::ostringstream os;
+            os << "band width must be a positive number of voxels (at most 1e5), got " << w;
+            throw InvalidArgumentError(os.str());
+        }
+    const double h = uniformVoxelSize(field);
+    requireFinite(field);
+    auto* interrupter = o.interrupter;
+    if (interrupter) interrupter->start("volume to level set (sparse)");
+    SparseVolumeToLevelSetStats stats;
+    const double iso = o.iso;
+    const bool below = o.insideBelow;
+    auto inside = [&](float v) { return below ? double(v) <= iso : double(v) >= iso; };
+
+    // ---- 1. candidate cells: leaves, faces of tiles on the other side than the background
+    auto t0 = Clock::now();
+    openvdb::MaskTree cells(false);
+    const bool bgInside = inside(field.background());
+    for (auto it = field.tree().cbeginLeaf(); it; ++it) cells.touchLeaf(it->origin())->setValuesOn();
+    {
+        // A tile face can hold a crossing only where the region across it differs. Skipped: the
+        // region across is one tile (or background) at least as large as this tile — VDB tiles
+        // are aligned to their size, so it covers the whole face — with the same flag; or, for
+        // an 8³ tile, a leaf (the leaf's marked voxels, dilated below, name those cells).
+        auto acc = field.getConstAccessor();
+        auto regionSize = [](int depth) { return depth <= 0 ? 4096 : depth == 1 ? 128 : depth == 2 ? 8 : 1; };
+        for (auto it = field.tree().cbeginValueAll(); it; ++it) {
+            if (it.isVoxelValue() || inside(*it) == bgInside) continue;
+            openvdb::CoordBBox b;
+            it.getBoundingBox(b);
+            const Coord lo = b.min(), hi = b.max();
+            const int size = b.dim().x();
+            const bool flag = inside(*it);
+            for (int a = 0; a < 3; ++a)
+                for (int side = 0; side < 2; ++side) {
+                    Coord across = lo;
+                    across[a] = side ? hi[a] + 1 : lo[a] - 1;
+                    const int depth = acc.getValueDepth(across);
+                    if (depth < 3 && regionSize(depth) >= size && inside(acc.getValue(across)) == flag) continue;
+                    if (depth == 3 && size == 8) continue;
+                    Coord flo = lo, fhi = hi;
+                    flo[a] = fhi[a] = side ? hi[a] : lo[a];
+                    cells.fill(openvdb::CoordBBox(flo, fhi), true, true);
+                }
+        }
+    }
+    cells.voxelizeActiveTiles();
+    // A cell is named by its minimum corner; a crossing next to a voxel v can start at v - 1.
+    openvdb::tools::dilateActiveValues(cells, 1, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::IGNORE_TILES);
+    progress_internal::check(interrupter, 5);
+
+    openvdb::tree::LeafManager<openvdb::MaskTree> cellLeaves(cells);
+    const size_t nLeaves = cellLeaves.leafCount();
+    std::vector<std::vector<iso_surface_internal::Tri>> perLeaf(nLeaves);
+    std::vector<uint64_t> candidates(nLeaves, 0), crossing(nLeaves, 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nLeaves, 16), [&](const tbb::blocked_range<size_t>& r) {
+        progress_internal::check(interrupter);
+        auto acc = field.getConstAccessor();
+        for (size_t li = r.begin(); li != r.end(); ++li) {
+            const auto& leaf = cellLeaves.leaf(li);
+            for (auto v = leaf.cbeginValueOn(); v; ++v) {
+                const Coord c = v.getCoord();
+                double val[8];
+                openvdb::Vec3d p[8];
+                int nIn = 0;
+                for (int k = 0; k < 8; ++k) {
+                    const Coord q(c.x() + (k & 1), c.y() + ((k >> 1) & 1), c.z() + ((k >> 2) & 1));
+                    const float f = acc.getValue(q);
+                    val[k] = f;
+                    nIn += inside(f) ? 1 : 0;
+                    p[k] = openvdb::Vec3d(q.x(), q.y(), q.z()) * h;
+                }
+                ++candidates[li];
+                if (nIn == 0 || nIn == 8) continue;
+                ++crossing[li];
+                iso_surface_internal::cellTriangles(val, p, iso, below, [&](const iso_surface_internal::Tri& t) {
+                    perLeaf[li].push_back(t);
+                });
+            }
+        }
+    });
+    TriangleMesh soup;
+    {
+        size_t n = 0;
+        for (const auto& v : perLeaf) n += v.size();
+        if (n == 0) {
+            std::ostringstream os;
+            os << gridLabel(field) << ": no surface at iso-value " << iso << " (every sample is "
+               << (bgInside ? "inside" : "outside") << ")";
+            throw InvalidArgumentError(os.str());
+        }
+        if (n > size_t(std::numeric_limits<uint32_t>::max() / 3))
+            throw ResourceLimitError(gridLabel(field) + ": the iso-surface has more triangles than 32-bit "
+                                     "indices allow");
+        // Weld the vertices (a crossing shared by neighbouring tetrahedra and cells is computed
+        // from either end, so copies agree to a few ulps: key = position rounded to 2^-24 voxel),
+        // so that the expansion's triangle refinement can walk across edges and vertex fans.
+        std::unordered_map<std::array<int64_t, 3>, uint32_t, KeyHash> weld;
+        weld.reserve(n * 2);
+        soup.points.reserve(n);
+        soup.triangles.reserve(n);
+        const double q = double(1 << 24) / h;
+        auto vertex = [&](const Vec3d& p) {
+            const std::array<int64_t, 3> key = {int64_t(std::llround(p[0] * q)), int64_t(std::llround(p[1] * q)),
+                                                int64_t(std::llround(p[2] * q))};
+            auto [it, added] = weld.emplace(key, uint32_t(soup.points.size()));
+            if (added) soup.points.push_back(p);
+            return it->second;
+        };
+        for (size_t li = 0; li < nLeaves; ++li) {
+            stats.candidateCells += candidates[li];
+            stats.surfaceCells += crossing[li];
+            for (const auto& t : perLeaf[li]) {
+                const uint32_t a = vertex(t.a), b = vertex(t.b), c = vertex(t.c);
+                if (a == b || b == c || a == c) continue; // collapsed at a sample exactly on the iso-value
+                soup.triangles.push_back(Vec3I(a, b, c));
+            }
+            std::vector<iso_surface_internal::Tri>().swap(perLeaf[li]);
+        }
+        if (soup.triangles.empty()) {
+            std::ostringstream os;
+            os << gridLabel(field) << ": the surface at iso-value " << iso << " has no area (every crossing lies "
+               << "exactly on a sample)";
+            throw InvalidArgumentError(os.str());
+        }
+        soup.source = gridLabel(field) + " iso-surface";
+    }
+    stats.triangles = soup.triangles.size();
+    stats.secondsSurface = secondsSince(t0);
+    progress_internal::check(interrupter, 20);
+
+    // ---- 2. exact band with closest points; signs from the samples
+    t0 = Clock::now();
+    const bool widen = o.method == VolumeDistanceMethod::VCVDT8;
+    const double wantMax = std::max(o.exteriorWidth, o.fillInterior ? 3.0 : o.interiorWidth);
+    const double exact = widen ? std::min(1.5, wantMax) : wantMax;
+    const double exactExt = std::min(exact, o.exteriorWidth);
+    const double exactInt = o.fillInterior ? exact : std::min(exact, o.interiorWidth);
+    stats.exactBand = exact;
+    MeshToLevelSetOptions mo;
+    mo.voxelSize = h;
+    mo.exteriorWidth = mo.interiorWidth = float(exact); // symmetric: membership by |d| (signs come later)
+    mo.gridName = o.gridName;
+    mo.maxVoxels = o.maxVoxels;
+    mo.interrupter = interrupter; // reports its own stage
+    LevelSetWithClosestPoints band = meshToLevelSetWithClosestPoints(soup, mo, &stats.exact);
+    if (interrupter) interrupter->start("volume to level set (sparse): signs");
+    progress_internal::check(interrupter, 60);
+    // Rebuild the tree from the active voxels alone, signed by the inside flags, trimmed to the
+    // (possibly asymmetric) exact widths; then a fresh signed flood fill. The grid is in index
+    // space × h without the input's translation, like the soup (the expansion's triangle
+    // refinement maps index to world with this transform); the input's transform is set last.
+    tbb::enumerable_thread_specific<openvdb::FloatGrid::ConstAccessor> fieldAcc(
+        [&] { return field.getConstAccessor(); });
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    openvdb::FloatGrid::Ptr grid = levelSetGrid(
+        keptVoxels(band.levelSet->tree(), float(std::max(exactExt, exactInt) * h),
+                   [&](const Coord& c, float v) {
+                       const bool in = inside(fieldAcc.local().getValue(c));
+                       const double d = std::abs(double(v)) / h;
+                       return d < (in ? exactInt : exactExt) ? (in ? -std::abs(v) : std::abs(v)) : nan;
+                   }),
+        openvdb::math::Transform::createLinearTransform(h), o.gridName);
+    stats.exactVoxels = grid->activeVoxelCount();
+    stats.secondsExact = secondsSince(t0);
+    progress_internal::check(interrupter, 70);
+
+    // ---- 3. widen by the sparse VCVDT (closest points and triangles of the exact band)
+    // (fill interior: the inside beyond the exact band comes from the sparse VCVDT with either method)
+    if (o.fillInterior || (widen && (o.exteriorWidth > exactExt || o.interiorWidth > exactInt))) {
+        t0 = Clock::now();
+        ExpandLevelSetOptions eo;
+        eo.method = ExpansionMethod::Vector;
+        eo.closestPoints = &band.closestPoints->tree();
+        eo.closestTriangles = &band.closestTriangles->tree();
+        eo.mesh = &soup;
+        eo.exteriorWidth = o.exteriorWidth;
+        eo.interiorWidth = o.fillInterior ? exact : o.interiorWidth;
+        eo.fillInterior = o.fillInterior;
+        eo.inputExteriorWidth = exactExt;
+        eo.inputInteriorWidth = exactInt;
+        eo.maxVoxels = o.maxVoxels;
+        eo.interrupter = interrupter; // reports its own stage
+        grid = expandLevelSet(*grid, eo);
+        if (interrupter) interrupter->start("volume to level set (sparse): trim");
+        // expandLevelSet keeps a coverage margin beyond the widths; the volume path's band is
+        // -interior < φ < exterior exactly, as on the dense path.
+        const double bgW = o.fillInterior ? std::max(double(grid->background()), o.exteriorWidth * h)
+                                          : std::max(o.exteriorWidth, o.interiorWidth) * h;
+        const float ext = float(o.exteriorWidth * h), in = float(o.interiorWidth * h);
+        auto trimmed = keptVoxels(grid->tree(), float(bgW), [&](const Coord&, float x) {
+            return (x < ext && (o.fillInterior || x > -in)) ? x : nan;
+        });
+        if (o.fillInterior) {
+            // Interior tiles the expansion made active stay active (every inside voxel is kept).
+            for (auto it = grid->tree().cbeginValueOn(); it; ++it)
+                if (it.isTileValue() && *it < 0.0f) {
+                    openvdb::CoordBBox b;
+                    it.getBoundingBox(b);
+                    trimmed->fill(b, *it, true);
+                }
+        }
+        grid = levelSetGrid(trimmed, grid->transform().copy(), o.gridName);
+        stats.secondsWiden = secondsSince(t0);
+        stats.widened = true;
+    }
+    grid->setTransform(field.transform().copy());
+    stats.activeVoxels = grid->activeVoxelCount();
+    if (interrupter) {
+        interrupter->wasInterrupted(100);
+        interrupter->end();
+    }
+    if (statsOut) *statsOut = stats;
+    return grid;
+}
+
+} // namespace levelforge

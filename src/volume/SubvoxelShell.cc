@@ -1,0 +1,313 @@
+// levelforge — sub-voxel shell of closest-point vectors (see SubvoxelShell.h).
+#include <levelforge/volume/SubvoxelShell.h>
+
+#include "detail/IsoSurfaceCells.h"
+
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/core/TriangleDistance.h>
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <vector>
+
+namespace levelforge {
+namespace {
+
+using iso_surface_internal::Tri;
+using iso_surface_internal::cellTriangles;
+
+using Clock = std::chrono::steady_clock;
+
+void checkVolume(const ScalarVolume& f)
+{
+    requireValidVolume(f, "sub-voxel shell");
+    if (f.dims.x() < 2 || f.dims.y() < 2 || f.dims.z() < 2) {
+        std::ostringstream os;
+        os << "sub-voxel shell: the volume must have at least 2 samples along each axis, got "
+           << f.dims.x() << "x" << f.dims.y() << "x" << f.dims.z();
+        throw InvalidArgumentError(os.str());
+    }
+}
+
+/// Squared distance from p to a triangle, robust to degenerate (collinear) triangles.
+double triDistance2(const Vec3d& p, const Tri& t, Vec3d& closest)
+{
+    const Vec3d n = (t.b - t.a).cross(t.c - t.a);
+    const double scale = std::max({(t.b - t.a).lengthSqr(), (t.c - t.a).lengthSqr(), 1e-300});
+    if (n.lengthSqr() > 1e-24 * scale * scale) {
+        const TriangleClosestPoint cp = closestPointOnTriangle(p, t.a, t.b, t.c);
+        closest = cp.point;
+        return cp.distanceSqr;
+    }
+    double best = std::numeric_limits<double>::infinity();
+    const Vec3d* v[3] = {&t.a, &t.b, &t.c};
+    for (int e = 0; e < 3; ++e) {
+        const Vec3d& a = *v[e];
+        const Vec3d& b = *v[(e + 1) % 3];
+        const Vec3d ab = b - a;
+        const double l2 = ab.lengthSqr();
+        double s = l2 > 0.0 ? (p - a).dot(ab) / l2 : 0.0;
+        s = std::min(1.0, std::max(0.0, s));
+        const Vec3d q = a + ab * s;
+        const double d2 = (p - q).lengthSqr();
+        if (d2 < best) { best = d2; closest = q; }
+    }
+    return best;
+}
+
+class Shell
+{
+public:
+    Shell(const ScalarVolume& f, const SubvoxelShellOptions& o) : mF(f), mOpt(o)
+    {
+        const size_t n = f.voxelCount();
+        for (size_t i = 0; i < n; ++i) {
+            if (std::isnan(f.data[i])) {
+                const int x = int(i % size_t(f.dims.x())), y = int((i / size_t(f.dims.x())) % size_t(f.dims.y())),
+                          z = int(i / (size_t(f.dims.x()) * size_t(f.dims.y())));
+                std::ostringstream os;
+                os << "sub-voxel shell: sample (" << x << ", " << y << ", " << z << ") is NaN";
+                throw InvalidArgumentError(os.str());
+            }
+        }
+        mInside = insideFlags(f, o);
+    }
+
+    const MaskVolume& inside() const { return mInside; }
+
+    /// Triangles of every surface cell, indexed by cell (CSR over the cells that have some).
+    void buildSurface(SubvoxelShellStats& stats)
+    {
+        const int cx = mF.dims.x() - 1, cy = mF.dims.y() - 1, cz = mF.dims.z() - 1;
+        mCellDims = openvdb::Coord(cx, cy, cz);
+        const size_t nCells = size_t(cx) * size_t(cy) * size_t(cz);
+        mCellBegin.assign(nCells + 1, 0);
+        // pass 1: triangle counts per cell (parallel over z-slabs), pass 2: fill
+        std::vector<uint32_t> counts(nCells, 0);
+        tbb::parallel_for(tbb::blocked_range<int>(0, cz), [&](const tbb::blocked_range<int>& r) {
+            for (int k = r.begin(); k != r.end(); ++k)
+                for (int j = 0; j < cy; ++j)
+                    for (int i = 0; i < cx; ++i) {
+                        const size_t c = cellIndex(i, j, k);
+                        if (!mixed(i, j, k)) continue;
+                        uint32_t nt = 0;
+                        double v[8];
+                        Vec3d p[8];
+                        corners(i, j, k, v, p);
+                        cellTriangles(v, p, mOpt.iso, mOpt.insideBelow, [&](const Tri&) { ++nt; });
+                        counts[c] = nt;
+                    }
+        });
+        uint64_t total = 0, cells = 0;
+        for (size_t c = 0; c < nCells; ++c) {
+            mCellBegin[c] = total;
+            total += counts[c];
+            cells += counts[c] ? 1 : 0;
+        }
+        mCellBegin[nCells] = total;
+        mTris.resize(total);
+        tbb::parallel_for(tbb::blocked_range<int>(0, cz), [&](const tbb::blocked_range<int>& r) {
+            for (int k = r.begin(); k != r.end(); ++k)
+                for (int j = 0; j < cy; ++j)
+                    for (int i = 0; i < cx; ++i) {
+                        const size_t c = cellIndex(i, j, k);
+                        if (mCellBegin[c + 1] == mCellBegin[c]) continue;
+                        double v[8];
+                        Vec3d p[8];
+                        corners(i, j, k, v, p);
+                        uint64_t w = mCellBegin[c];
+                        cellTriangles(v, p, mOpt.iso, mOpt.insideBelow, [&](const Tri& t) { mTris[w++] = t; });
+                    }
+        });
+        stats.surfaceCells = cells;
+        stats.triangles = total;
+    }
+
+    const std::vector<Tri>& triangles() const { return mTris; }
+
+    /// Exact closest point of the surface to voxel (i, j, k): cells in growing windows whose
+    /// half-width per axis follows a world radius (so anisotropic spacing costs nothing extra),
+    /// until no cell outside the window can hold a closer point.
+    bool closestPoint(int i, int j, int k, Vec3d& q, double& d2) const
+    {
+        const Vec3d p = mF.worldPosition(i, j, k);
+        const double hmin = std::min({mF.spacing[0], mF.spacing[1], mF.spacing[2]});
+        const int c[3] = {i, j, k};
+        d2 = std::numeric_limits<double>::infinity();
+        int prev[3] = {-1, -1, -1}; // half-widths of the window already searched (-1: none)
+        for (double radius = 2.0 * hmin;; radius *= 1.5) {
+            int hw[3];
+            bool covers = true;
+            for (int a = 0; a < 3; ++a) {
+                hw[a] = std::max(2, int(std::ceil(radius / mF.spacing[a])));
+                covers = covers && c[a] - hw[a] <= 0 && c[a] + hw[a] >= mCellDims[a];
+            }
+            const int lo[3] = {std::max(0, c[0] - hw[0]), std::max(0, c[1] - hw[1]), std::max(0, c[2] - hw[2])};
+            const int hi[3] = {std::min(mCellDims[0], c[0] + hw[0]), std::min(mCellDims[1], c[1] + hw[1]),
+                               std::min(mCellDims[2], c[2] + hw[2])};
+            for (int ck = lo[2]; ck < hi[2]; ++ck)
+                for (int cj = lo[1]; cj < hi[1]; ++cj)
+                    for (int ci = lo[0]; ci < hi[0]; ++ci) {
+                        if (prev[0] >= 0 && ci >= i - prev[0] && ci < i + prev[0] && cj >= j - prev[1] &&
+                            cj < j + prev[1] && ck >= k - prev[2] && ck < k + prev[2])
+                            continue; // searched in an earlier window
+                        const size_t cell = cellIndex(ci, cj, ck);
+                        for (uint64_t t = mCellBegin[cell]; t < mCellBegin[cell + 1]; ++t) {
+                            Vec3d cp;
+                            const double e2 = triDistance2(p, mTris[t], cp);
+                            if (e2 < d2) { d2 = e2; q = cp; }
+                        }
+                    }
+            for (int a = 0; a < 3; ++a) prev[a] = hw[a];
+            // a cell outside the window [c-hw, c+hw) on axis a is at least hw[a] samples away
+            double reach = std::numeric_limits<double>::infinity();
+            for (int a = 0; a < 3; ++a) reach = std::min(reach, double(hw[a]) * mF.spacing[a]);
+            if (d2 <= reach * reach || covers) break;
+        }
+        return std::isfinite(d2);
+    }
+
+private:
+    size_t cellIndex(int i, int j, int k) const
+    {
+        return (size_t(k) * size_t(mCellDims.y()) + size_t(j)) * size_t(mCellDims.x()) + size_t(i);
+    }
+    bool mixed(int i, int j, int k) const
+    {
+        bool any = false, all = true;
+        for (int c = 0; c < 8; ++c) {
+            const bool in = mInside(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1)) != 0;
+            any = any || in;
+            all = all && in;
+        }
+        return any && !all;
+    }
+    void corners(int i, int j, int k, double v[8], Vec3d p[8]) const
+    {
+        for (int c = 0; c < 8; ++c) {
+            const int x = i + (c & 1), y = j + ((c >> 1) & 1), z = k + ((c >> 2) & 1);
+            v[c] = mF(x, y, z);
+            p[c] = mF.worldPosition(x, y, z);
+        }
+    }
+
+    const ScalarVolume& mF;
+    SubvoxelShellOptions mOpt;
+    MaskVolume mInside;
+    openvdb::Coord mCellDims{0, 0, 0};
+    std::vector<uint64_t> mCellBegin;
+    std::vector<Tri> mTris;
+};
+
+} // namespace
+
+MaskVolume insideFlags(const ScalarVolume& field, const SubvoxelShellOptions& options)
+{
+    requireValidVolume(field, "inside flags");
+    MaskVolume m(field.dims, 0, field.spacing, field.origin);
+    const float iso = options.iso;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, field.data.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i)
+            m.data[i] = options.insideBelow ? uint8_t(field.data[i] <= iso) : uint8_t(field.data[i] >= iso);
+    });
+    return m;
+}
+
+TriangleMesh isoSurfaceTriangles(const ScalarVolume& field, const SubvoxelShellOptions& options)
+{
+    checkVolume(field);
+    Shell shell(field, options);
+    SubvoxelShellStats st;
+    shell.buildSurface(st);
+    TriangleMesh mesh;
+    mesh.source = "iso-surface";
+    mesh.points.reserve(3 * shell.triangles().size());
+    mesh.triangles.reserve(shell.triangles().size());
+    for (const Tri& t : shell.triangles()) {
+        const uint32_t b = uint32_t(mesh.points.size());
+        mesh.points.push_back(t.a);
+        mesh.points.push_back(t.b);
+        mesh.points.push_back(t.c);
+        mesh.triangles.emplace_back(b, b + 1, b + 2);
+    }
+    return mesh;
+}
+
+VectorVolume subvoxelShell(const ScalarVolume& field, const SubvoxelShellOptions& options,
+                           SubvoxelShellStats* statsOut)
+{
+    const auto t0 = Clock::now();
+    checkVolume(field);
+    SubvoxelShellStats stats;
+    Shell shell(field, options);
+    shell.buildSurface(stats);
+    if (options.interrupter && options.interrupter->wasInterrupted(30))
+        throw InterruptedError("interrupted while building the sub-voxel shell");
+
+    const MaskVolume& in = shell.inside();
+    const int nx = field.dims.x(), ny = field.dims.y(), nz = field.dims.z();
+    // R: inside voxels with an outside 26-neighbour, and their 26-neighbours
+    MaskVolume transverse(field.dims, 0, field.spacing, field.origin);
+    tbb::parallel_for(tbb::blocked_range<int>(0, nz), [&](const tbb::blocked_range<int>& r) {
+        for (int k = r.begin(); k != r.end(); ++k)
+            for (int j = 0; j < ny; ++j)
+                for (int i = 0; i < nx; ++i) {
+                    if (!in(i, j, k)) continue;
+                    bool edge = false;
+                    for (int dz = -1; dz <= 1 && !edge; ++dz)
+                        for (int dy = -1; dy <= 1 && !edge; ++dy)
+                            for (int dx = -1; dx <= 1 && !edge; ++dx) {
+                                const int x = i + dx, y = j + dy, z = k + dz;
+                                if (in.inside(x, y, z) && !in(x, y, z)) edge = true;
+                            }
+                    transverse(i, j, k) = edge;
+                }
+    });
+    const float inf = std::numeric_limits<float>::infinity();
+    VectorVolume out(field.dims, ClosestVector{inf, inf, inf, inf}, field.spacing, field.origin);
+    std::atomic<uint64_t> shellCount{0}, insideCount{0};
+    std::atomic<bool> stop{false};
+    tbb::parallel_for(tbb::blocked_range<int>(0, nz), [&](const tbb::blocked_range<int>& r) {
+        uint64_t ns = 0, ni = 0;
+        for (int k = r.begin(); k != r.end() && !stop; ++k) {
+            for (int j = 0; j < ny; ++j)
+                for (int i = 0; i < nx; ++i) {
+                    ni += in(i, j, k) ? 1 : 0;
+                    bool inR = false;
+                    for (int dz = -1; dz <= 1 && !inR; ++dz)
+                        for (int dy = -1; dy <= 1 && !inR; ++dy)
+                            for (int dx = -1; dx <= 1 && !inR; ++dx) {
+                                const int x = i + dx, y = j + dy, z = k + dz;
+                                if (transverse.inside(x, y, z) && transverse(x, y, z)) inR = true;
+                            }
+                    if (!inR) continue;
+                    Vec3d q;
+                    double d2;
+                    if (!shell.closestPoint(i, j, k, q, d2)) continue;
+                    const Vec3d v = q - field.worldPosition(i, j, k);
+                    out(i, j, k) = ClosestVector{float(v[0] / field.spacing[0]), float(v[1] / field.spacing[1]),
+                                                 float(v[2] / field.spacing[2]), float(d2)};
+                    ++ns;
+                }
+            if (options.interrupter && options.interrupter->wasInterrupted(-1)) stop = true;
+        }
+        shellCount += ns;
+        insideCount += ni;
+    });
+    if (stop) throw InterruptedError("interrupted while computing the sub-voxel shell");
+    stats.shellVoxels = shellCount;
+    stats.insideVoxels = insideCount;
+    stats.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    if (statsOut) *statsOut = stats;
+    return out;
+}
+
+} // namespace levelforge

@@ -1,0 +1,510 @@
+// AdaptiveDistanceField (Yin, Liu, Wu 2011 on the VDB tile hierarchy): type-1 samples exact,
+// reconstruction error per level within the stated bound, sign everywhere on closed meshes,
+// continuity across level changes, .vdb round trip, level-set conversion, CSG against two
+// analytic spheres, refinement mode, determinism across thread counts, bad input.
+#include "TestUtil.h"
+
+#include <levelforge/adf/AdaptiveDistanceField.h>
+#include <levelforge/reference/ExactReference.h>
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/reference/MeshShapes.h>
+#include <levelforge/mesh/MeshToLevelSet.h>
+#include <levelforge/io/VdbIO.h>
+
+#include <openvdb/tools/Prune.h>
+
+#include <tbb/global_control.h>
+
+#if __has_include("OperatorRegistry.h")
+#include "Operator.h"
+#include "OperatorRegistry.h"
+#define LEVELFORGE_TEST_ADF_OPERATORS 1
+#endif
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <sstream>
+
+using namespace levelforge;
+
+namespace {
+
+struct Built
+{
+    TriangleMesh mesh;
+    AdaptiveDistanceField adf;
+    AdaptiveDistanceFieldStats stats;
+};
+
+Built build(TriangleMesh mesh, double h, double tol = 0.0, double padding = 8.0)
+{
+    Built b;
+    b.mesh = std::move(mesh);
+    AdaptiveDistanceFieldOptions opt;
+    opt.voxelSize = h;
+    opt.toleranceVoxels = tol;
+    opt.paddingVoxels = padding;
+    b.adf = meshToAdaptiveDistanceField(b.mesh, opt, &b.stats);
+    return b;
+}
+
+Vec3d randomIn(std::mt19937_64& rng, const openvdb::BBoxd& box)
+{
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    return Vec3d(box.min()[0] + u(rng) * (box.max()[0] - box.min()[0]), box.min()[1] + u(rng) * (box.max()[1] - box.min()[1]),
+                 box.min()[2] + u(rng) * (box.max()[2] - box.min()[2]));
+}
+
+/// Global error per level at random points of the domain (and near the surface) against the
+/// exact reference; checks the stated bound and the sign.
+void checkAgainstExact(const Built& b, const char* what, int samples = 20000)
+{
+    ExactReference ref(b.mesh);
+    const double h = b.adf.voxelSize();
+    std::mt19937_64 rng(7);
+    const openvdb::BBoxd dom = b.adf.worldDomain();
+    BBoxd near = b.mesh.bounds();
+    near.expand(near.min() - Vec3d(3 * h));
+    near.expand(near.max() + Vec3d(3 * h));
+    std::array<double, kAdfLevels> maxErr{}, sumErr{};
+    std::array<uint64_t, kAdfLevels> count{};
+    uint64_t signErrors = 0;
+    for (int i = 0; i < samples; ++i) {
+        const Vec3d p = randomIn(rng, (i % 2) ? dom : openvdb::BBoxd(near.min(), near.max()));
+        const int level = b.adf.level(p);
+        ASSERT_GE(level, 0) << what;
+        const double d = b.adf.distance(p), e = ref.signedDistance(p);
+        const double err = std::abs(d - e) / h;
+        maxErr[size_t(level)] = std::max(maxErr[size_t(level)], err);
+        sumErr[size_t(level)] += err;
+        ++count[size_t(level)];
+        const double bound = b.stats.levelBoundVoxels[size_t(level)];
+        EXPECT_LE(err, bound) << what << " level " << level << " at " << p << ": adf " << d << " exact " << e;
+        if (std::abs(e) > bound * h && (d < 0) != (e < 0)) ++signErrors;
+    }
+    EXPECT_EQ(signErrors, 0u) << what;
+    for (int l = 0; l < kAdfLevels; ++l)
+        if (count[size_t(l)])
+            std::printf("  %s level %d (cell %d): %llu points, max %.4f mean %.4f voxels, stated bound %.4f\n", what, l,
+                        kAdfCellSize[l], (unsigned long long)count[size_t(l)], maxErr[size_t(l)],
+                        sumErr[size_t(l)] / double(count[size_t(l)]), b.stats.levelBoundVoxels[size_t(l)]);
+    for (int l = 0; l < kAdfLevels; ++l) EXPECT_GE(b.stats.levelTestPointVoxels[size_t(l)], count[size_t(l)] ? 0.0 : -1.0) << l;
+    EXPECT_GT(count[0], 0u) << what;
+    EXPECT_GT(count[3] + count[4], 0u) << what;
+}
+
+/// Every lattice value stored in the grid: exact within float rounding where the lattice point
+/// lies within one voxel of the surface (such a point is a corner of a boundary cell: type-1),
+/// and the right sign everywhere (tiles: type-3, leaf voxels: type-1/2 or constrained).
+void checkSamples(const Built& b, const char* what)
+{
+    ExactReference ref(b.mesh);
+    const double h = b.adf.voxelSize();
+    const auto& tree = b.adf.grid()->tree();
+    const openvdb::CoordBBox dom = b.adf.indexDomain();
+    uint64_t exactChecked = 0, signChecked = 0, tileChecked = 0;
+    double maxType1 = 0;
+    for (auto it = tree.cbeginValueAll(); it; ++it) {
+        const openvdb::Coord p = it.getCoord();
+        if (!dom.isInside(p)) continue;
+        if (!it.isVoxelValue()) {
+            // a tile: its value is the sample at its origin, if that origin is a sample at all
+            float v = 0;
+            const double e = ref.signedDistance(b.adf.grid()->indexToWorld(p));
+            v = float(b.adf.latticeValue(p));
+            ++tileChecked;
+            EXPECT_EQ(v < 0, e < 0) << what << " tile at " << p << ": " << v << " vs exact " << e;
+            continue;
+        }
+        const double e = ref.signedDistance(b.adf.grid()->indexToWorld(p));
+        const double v = *it;
+        EXPECT_EQ(b.adf.latticeValue(p), v) << what;
+        if (std::abs(e) < h) {
+            maxType1 = std::max(maxType1, std::abs(v - e) / h);
+            ++exactChecked;
+        }
+        if (std::abs(e) > 1e-6 * h) {
+            EXPECT_EQ(v < 0, e < 0) << what << " voxel " << p << ": " << v << " vs exact " << e;
+            ++signChecked;
+        }
+    }
+    EXPECT_GT(exactChecked, 100u) << what;
+    EXPECT_GT(tileChecked, 10u) << what;
+    EXPECT_LE(maxType1, 2e-5) << what << ": type-1 samples must be exact";
+    std::printf("  %s: %llu type-1 samples exact (max %.2e voxels), %llu lattice signs, %llu tiles\n", what,
+                (unsigned long long)exactChecked, maxType1, (unsigned long long)signChecked, (unsigned long long)tileChecked);
+}
+
+/// Same topology and every value (voxels and tiles) bit for bit; returns the values compared.
+uint64_t expectIdenticalTrees(const AdaptiveDistanceField& a, const AdaptiveDistanceField& b)
+{
+    const auto& t1 = a.grid()->tree();
+    const auto& t2 = b.grid()->tree();
+    EXPECT_EQ(t1.leafCount(), t2.leafCount());
+    EXPECT_EQ(t1.activeTileCount(), t2.activeTileCount());
+    auto it2 = t2.cbeginValueAll();
+    uint64_t n = 0;
+    for (auto it1 = t1.cbeginValueAll(); it1; ++it1, ++it2, ++n) {
+        if (!it2 || it1.getCoord() != it2.getCoord() || *it1 != *it2) {
+            ADD_FAILURE() << "trees differ at " << it1.getCoord();
+            return n;
+        }
+    }
+    EXPECT_FALSE(bool(it2));
+    return n;
+}
+
+} // namespace
+
+TEST(AdaptiveDistanceField, SphereSamplesBoundsAndSign)
+{
+    const Built b = build(makeIcosphere(Vec3d(0.1, -0.2, 0.05), 1.0, 4), 0.04);
+    EXPECT_GT(b.stats.type1, 0u);
+    EXPECT_GT(b.stats.type2, 0u);
+    EXPECT_GT(b.stats.type3, 0u);
+    EXPECT_GT(b.stats.hanging, 0u);
+    EXPECT_LE(b.stats.type2MaxBoundVoxels, std::sqrt(3.0) / 2 + 1e-9);
+    for (int l = 0; l < 4; ++l) EXPECT_GE(b.stats.levelBoundVoxels[size_t(l)], 0.0) << l;
+    EXPECT_LT(b.stats.memoryBytes, b.stats.domainVoxels * 4);
+    checkSamples(b, "icosphere");
+    checkAgainstExact(b, "icosphere");
+}
+
+TEST(AdaptiveDistanceField, FarFieldInLevel2Tiles)
+{
+    // a small sphere inside one 128³ block and a padding of 300 voxels: the blocks around it are
+    // subdivided (grading), the outer ones stay 128³ tiles (level 4)
+    const Built b = build(makeIcosphere(Vec3d(3.2, 3.3, 3.1), 0.3, 3), 0.05, 0.0, 300.0);
+    EXPECT_GT(b.stats.level2Tiles, 0u);
+    for (int l = 0; l < kAdfLevels; ++l) EXPECT_GE(b.stats.levelBoundVoxels[size_t(l)], 0.0) << l;
+    checkAgainstExact(b, "far field", 6000);
+}
+
+TEST(AdaptiveDistanceField, PrunedTreeStillAnswersQueries)
+{
+    // Another tool may collapse uniform nodes (openvdb::tools::prune): 128³ blocks then become
+    // root tiles. Queries must keep working and give the same values.
+    const Built b = build(makeIcosphere(Vec3d(3.2, 3.3, 3.1), 0.3, 3), 0.05, 0.0, 300.0);
+    openvdb::FloatGrid::Ptr copy = b.adf.grid()->deepCopy();
+    openvdb::tools::prune(copy->tree());
+    const AdaptiveDistanceField pruned{openvdb::FloatGrid::ConstPtr(copy)};
+    std::mt19937_64 rng(7);
+    const openvdb::BBoxd box = b.adf.worldDomain();
+    for (int n = 0; n < 2000; ++n) {
+        const Vec3d p = randomIn(rng, box);
+        ASSERT_NEAR(pruned.distance(p), b.adf.distance(p), 1e-5) << p;
+    }
+}
+
+TEST(AdaptiveDistanceField, TorusKnotAndTorusSign)
+{
+    // thin tube: near and far samples, concave regions, many level changes
+    checkAgainstExact(build(makeTorusKnot(2, 3, 1.0, 0.25, 128, 12), 0.04), "torus knot", 10000);
+    const Built t = build(makeTorus(Vec3d(0.0), 1.0, 0.35, 48, 24), 0.06);
+    checkSamples(t, "torus");
+    checkAgainstExact(t, "torus", 10000);
+}
+
+TEST(AdaptiveDistanceField, ContinuousAcrossLevels)
+{
+    const Built b = build(makeIcosphere(Vec3d(0.0), 1.0, 3), 0.05);
+    const double h = b.adf.voxelSize();
+    std::mt19937_64 rng(3);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    // points on the faces of 8³ blocks (leaf/tile boundaries) and of 2³ / 4³ nodes
+    const openvdb::BBoxd dom = b.adf.worldDomain();
+    int levelChanges = 0;
+    double worst = 0, worstGradJump = 0;
+    for (int i = 0; i < 40000; ++i) {
+        Vec3d p = randomIn(rng, dom);
+        const int axis = i % 3;
+        const int step = (i / 3) % 2 ? 8 : ((i / 6) % 2 ? 4 : 2);
+        const double idx = std::round(p[axis] / h / step) * step;
+        p[axis] = idx * h;
+        const double eps = 1e-7 * h;
+        Vec3d a = p, c = p;
+        a[axis] -= eps;
+        c[axis] += eps;
+        if (!dom.isInside(a) || !dom.isInside(c)) continue;
+        const double da = b.adf.distance(a), dc = b.adf.distance(c);
+        worst = std::max(worst, std::abs(da - dc) / h);
+        if (b.adf.level(a) != b.adf.level(c)) {
+            ++levelChanges;
+            worstGradJump = std::max(worstGradJump, (b.adf.gradient(a) - b.adf.gradient(c)).length());
+        }
+    }
+    EXPECT_GT(levelChanges, 100);
+    EXPECT_LT(worst, 1e-5) << "jump across a cell face, voxels";
+    std::printf("  %d level changes crossed, largest jump %.2e voxels (gradient jump %.3f)\n", levelChanges, worst, worstGradJump);
+    // gradient: |∇d| ≈ 1 near the surface, pointing outward on a sphere
+    const Vec3d g = b.adf.gradient(Vec3d(0.0, 0.0, 1.02));
+    EXPECT_NEAR(g.length(), 1.0, 0.05);
+    EXPECT_GT(g[2], 0.95);
+}
+
+TEST(AdaptiveDistanceField, VdbRoundTripAndLevelSet)
+{
+    const Built b = build(makeTorus(Vec3d(0.0), 1.0, 0.3, 48, 24), 0.04);
+    const auto dir = levelforge_test::scratchDir("adf_roundtrip");
+    const std::string path = (dir / "torus_adf.vdb").string();
+    writeGridsAtomic(path, openvdb::GridPtrVec{b.adf.grid()->deepCopy()});
+    const auto grids = readGrids(path);
+    ASSERT_EQ(grids->size(), 1u);
+    ASSERT_TRUE(isAdaptiveDistanceField(*(*grids)[0]));
+    const AdaptiveDistanceField back(openvdb::gridPtrCast<openvdb::FloatGrid>((*grids)[0]));
+    EXPECT_EQ(back.indexDomain(), b.adf.indexDomain());
+    EXPECT_EQ(back.voxelSize(), b.adf.voxelSize());
+    for (int l = 0; l < kAdfLevels; ++l) EXPECT_EQ(back.levelBoundVoxels(l), b.stats.levelBoundVoxels[size_t(l)]);
+    std::mt19937_64 rng(11);
+    for (int i = 0; i < 5000; ++i) {
+        const Vec3d p = randomIn(rng, b.adf.worldDomain());
+        ASSERT_EQ(back.distance(p), b.adf.distance(p)) << p;
+    }
+    // an ordinary level set (3 voxels) from the ADF, against the exact reference
+    auto ls = adaptiveDistanceFieldToLevelSet(back, 3.0);
+    EXPECT_EQ(ls->getGridClass(), openvdb::GRID_LEVEL_SET);
+    ExactReference ref(b.mesh);
+    const BandErrorReport r = compareToReference(*ls, ref, 3.0, 3.0);
+    EXPECT_GT(r.checkedVoxels, 1000u);
+    EXPECT_EQ(r.signErrors, 0u);
+    double bandBound = 0;
+    for (int l = 0; l < kAdfLevels; ++l) bandBound = std::max(bandBound, b.stats.levelBoundVoxels[size_t(l)]);
+    EXPECT_LE(r.maxError, bandBound);
+    std::printf("  level set from ADF: %llu voxels, max error %.4f mean %.5f voxels\n", (unsigned long long)r.checkedVoxels,
+                r.maxError, r.meanError);
+    // a grid that is not an ADF
+    auto plain = openvdb::FloatGrid::create(1.0f);
+    EXPECT_FALSE(isAdaptiveDistanceField(*plain));
+    EXPECT_THROW(AdaptiveDistanceField{plain}, InvalidArgumentError);
+}
+
+TEST(AdaptiveDistanceField, CsgOfTwoSpheres)
+{
+    const double r = 0.8, h = 0.05;
+    const Vec3d ca(-0.4, 0.0, 0.0), cb(0.45, 0.1, 0.0);
+    const Built a = build(makeIcosphere(ca, r, 4), h), b = build(makeIcosphere(cb, r, 4), h);
+    const double faceting = 2e-3; // icosphere s=4 vs the analytic sphere (< 1e-3 r), world units
+    auto sa = [&](const Vec3d& p) { return (p - ca).length() - r; };
+    auto sb = [&](const Vec3d& p) { return (p - cb).length() - r; };
+    double bound = 0;
+    for (int l = 0; l < kAdfLevels; ++l)
+        bound = std::max({bound, a.stats.levelBoundVoxels[size_t(l)], b.stats.levelBoundVoxels[size_t(l)]});
+    for (CsgOperation op : {CsgOperation::Union, CsgOperation::Intersection, CsgOperation::Difference}) {
+        const AdaptiveDistanceField c = csgAdaptiveDistanceFields(a.adf, b.adf, op);
+        auto analytic = [&](const Vec3d& p) {
+            return op == CsgOperation::Union ? std::min(sa(p), sb(p))
+                 : op == CsgOperation::Intersection ? std::max(sa(p), sb(p)) : std::max(sa(p), -sb(p));
+        };
+        std::mt19937_64 rng(5);
+        double maxErr = 0;
+        uint64_t signErrors = 0;
+        for (int i = 0; i < 10000; ++i) {
+            const Vec3d p = randomIn(rng, c.worldDomain());
+            const double d = c.distance(p), e = analytic(p);
+            maxErr = std::max(maxErr, std::abs(d - e));
+            if (std::abs(e) > bound * h + faceting && (d < 0) != (e < 0)) ++signErrors;
+        }
+        EXPECT_LE(maxErr, bound * h + faceting) << int(op);
+        EXPECT_EQ(signErrors, 0u) << int(op);
+        std::printf("  ADF CSG op %d: max |adf - analytic| %.4f voxels (stated %.4f)\n", int(op), maxErr / h, bound);
+    }
+    // level sets: same shapes through openvdb::tools::csg*Copy
+    MeshToLevelSetOptions lo;
+    lo.voxelSize = h;
+    const auto la = meshToLevelSet(a.mesh, lo), lb = meshToLevelSet(b.mesh, lo);
+    for (CsgOperation op : {CsgOperation::Union, CsgOperation::Intersection, CsgOperation::Difference}) {
+        const auto c = csgLevelSets(*la, *lb, op);
+        uint64_t checked = 0;
+        double maxErr = 0;
+        for (auto it = c->cbeginValueOn(); it; ++it) {
+            const Vec3d p = c->indexToWorld(it.getCoord());
+            const double e = op == CsgOperation::Union ? std::min(sa(p), sb(p))
+                           : op == CsgOperation::Intersection ? std::max(sa(p), sb(p)) : std::max(sa(p), -sb(p));
+            if (std::abs(e) > 2 * h) continue; // inside the band of both inputs
+            maxErr = std::max(maxErr, std::abs(*it - e));
+            ++checked;
+        }
+        EXPECT_GT(checked, 1000u);
+        EXPECT_LE(maxErr, faceting + 1e-5) << int(op);
+    }
+    // mismatched voxel sizes
+    const Built coarse = build(makeIcosphere(ca, r, 2), 0.1);
+    EXPECT_THROW(csgAdaptiveDistanceFields(a.adf, coarse.adf, CsgOperation::Union), InvalidArgumentError);
+    EXPECT_THROW(csgOperationFromString("xor"), InvalidArgumentError);
+}
+
+TEST(AdaptiveDistanceField, RefinementModeMeetsTolerance)
+{
+    const double tol = 1.0;
+    const Built plain = build(makeTorus(Vec3d(0.0), 1.0, 0.3, 32, 16), 0.06);
+    const Built ref = build(makeTorus(Vec3d(0.0), 1.0, 0.3, 32, 16), 0.06, tol);
+    EXPECT_GT(ref.stats.refinedTiles, 0u);
+    EXPECT_GT(plain.stats.levelTestPointVoxels[3], tol + 0.8661);
+    // tiles now pass Frisken's test: deviation <= tol at the test points, + sqrt(3)/2 for the
+    // type-3 estimator
+    for (int l : {3, 4})
+        if (ref.stats.levelTestPointVoxels[size_t(l)] >= 0) EXPECT_LE(ref.stats.levelTestPointVoxels[size_t(l)], tol + 0.8661) << l;
+    checkAgainstExact(ref, "refined torus", 6000);
+}
+
+TEST(AdaptiveDistanceField, SameResultForAnyThreadCount)
+{
+    const TriangleMesh mesh = makeTorusKnot(2, 3, 1.0, 0.25, 96, 10);
+    AdaptiveDistanceFieldOptions opt;
+    opt.voxelSize = 0.05;
+    AdaptiveDistanceField one, many;
+    {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+        one = meshToAdaptiveDistanceField(mesh, opt);
+    }
+    many = meshToAdaptiveDistanceField(mesh, opt);
+    EXPECT_GT(expectIdenticalTrees(one, many), 1000u);
+}
+
+/// The builder sorts the mesh spatially; ties keep the input order, so a shuffled mesh may pick
+/// another of several equally near triangles. Exact samples cannot change; certified type-2
+/// samples (beyond the gather radius) and what is interpolated from them stay within their
+/// certificates.
+TEST(AdaptiveDistanceField, TriangleOrderChangesNoExactValue)
+{
+    const TriangleMesh mesh = makeTorusKnot(2, 3, 1.0, 0.25, 96, 10);
+    TriangleMesh shuffled = mesh;
+    std::mt19937_64 rng(11);
+    std::vector<uint32_t> perm(mesh.points.size());
+    std::iota(perm.begin(), perm.end(), 0u);
+    std::shuffle(perm.begin(), perm.end(), rng);
+    for (size_t i = 0; i < perm.size(); ++i) shuffled.points[perm[i]] = mesh.points[i];
+    for (auto& t : shuffled.triangles) t = Vec3I(perm[t[0]], perm[t[1]], perm[t[2]]);
+    std::shuffle(shuffled.triangles.begin(), shuffled.triangles.end(), rng);
+    AdaptiveDistanceFieldOptions opt;
+    opt.voxelSize = 0.02;
+    opt.computeBounds = false;
+    AdaptiveDistanceFieldStats sa, sb;
+    const AdaptiveDistanceField a = meshToAdaptiveDistanceField(mesh, opt, &sa);
+    const AdaptiveDistanceField b = meshToAdaptiveDistanceField(shuffled, opt, &sb);
+    const double h = a.voxelSize();
+    const double cert = sa.type2MaxBoundVoxels + sb.type2MaxBoundVoxels;
+    const auto& ta = a.grid()->tree();
+    const auto& tb = b.grid()->tree();
+    ASSERT_EQ(ta.leafCount(), tb.leafCount());
+    ASSERT_EQ(ta.activeTileCount(), tb.activeTileCount());
+    auto ib = tb.cbeginValueAll();
+    uint64_t n = 0, near = 0, differ = 0;
+    double maxDiff = 0;
+    for (auto ia = ta.cbeginValueAll(); ia; ++ia, ++ib, ++n) {
+        ASSERT_TRUE(bool(ib));
+        ASSERT_EQ(ia.getCoord(), ib.getCoord());
+        const double va = *ia, vb = *ib;
+        if (std::abs(va) < h) { // corners of boundary cells: exact type-1 samples
+            ASSERT_EQ(va, vb) << ia.getCoord();
+            ++near;
+        }
+        if (va != vb) {
+            ++differ;
+            maxDiff = std::max(maxDiff, std::abs(va - vb) / h);
+            EXPECT_EQ(va < 0, vb < 0) << ia.getCoord();
+        }
+    }
+    EXPECT_LE(maxDiff, cert + 1e-5);
+    EXPECT_GT(near, 1000u);
+    std::printf("  %llu values, %llu within a voxel of the surface identical, %llu differ (max %.3g voxel, certificates %.3g; "
+                "%llu certified type-2 samples)\n",
+                (unsigned long long)n, (unsigned long long)near, (unsigned long long)differ, maxDiff, cert,
+                (unsigned long long)sa.type2Wide);
+}
+
+TEST(AdaptiveDistanceField, Avx2LeafPassMatchesTheBaselineBitForBit)
+{
+    // The AVX2 build of the per-leaf sample pass (x86-64 CPUs with AVX2) must reproduce the
+    // baseline build exactly. Without AVX2 this compares the baseline with itself.
+    const TriangleMesh meshes[] = {makeTorusKnot(2, 3, 1.0, 0.25, 96, 10), makeBox(Vec3d(-0.6, -0.3, -0.45), Vec3d(0.5, 0.35, 0.4))};
+    for (const TriangleMesh& mesh : meshes) {
+        AdaptiveDistanceFieldOptions opt;
+        opt.voxelSize = 0.02;
+        opt.computeBounds = false;
+        adf_internal::setAvx2LeafPassEnabled(false);
+        const AdaptiveDistanceField base = meshToAdaptiveDistanceField(mesh, opt);
+        adf_internal::setAvx2LeafPassEnabled(true);
+        const AdaptiveDistanceField fast = meshToAdaptiveDistanceField(mesh, opt);
+        const uint64_t n = expectIdenticalTrees(base, fast);
+        EXPECT_GT(n, 1000u);
+        std::printf("  %llu values identical (AVX2 leaf pass %s)\n", (unsigned long long)n,
+                    adf_internal::avx2LeafPassAvailable() ? "available" : "not available");
+    }
+}
+
+TEST(AdaptiveDistanceField, BadInput)
+{
+    const TriangleMesh mesh = makeIcosphere(Vec3d(0.0), 1.0, 1);
+    AdaptiveDistanceFieldOptions opt;
+    EXPECT_THROW(meshToAdaptiveDistanceField(mesh, opt), InvalidArgumentError); // no voxel size
+    opt.voxelSize = -1;
+    EXPECT_THROW(meshToAdaptiveDistanceField(mesh, opt), InvalidArgumentError);
+    opt.voxelSize = 0.1;
+    opt.toleranceVoxels = -1;
+    EXPECT_THROW(meshToAdaptiveDistanceField(mesh, opt), InvalidArgumentError);
+    opt.toleranceVoxels = 0;
+    opt.voxelSize = 1e-6;
+    opt.maxVoxels = 1000000;
+    EXPECT_THROW(meshToAdaptiveDistanceField(mesh, opt), ResourceLimitError);
+    EXPECT_THROW(meshToAdaptiveDistanceField(TriangleMesh{}, AdaptiveDistanceFieldOptions{}), Error);
+}
+
+#ifdef LEVELFORGE_TEST_ADF_OPERATORS
+namespace {
+/// Cooks an operator in-process; returns its stdout.
+std::string cook(const std::string& op, const std::vector<std::pair<std::string, std::string>>& ports,
+                 const std::vector<std::pair<std::string, std::string>>& params)
+{
+    const levelforge::ops::OperatorSpec* spec = levelforge::ops::OperatorRegistry::global().find(op);
+    EXPECT_NE(spec, nullptr) << op;
+    if (!spec) return {};
+    std::ostringstream out, err;
+    levelforge::ops::OperatorArgs args(*spec, out, err);
+    for (const auto& p : ports) args.setPort(p.first, p.second);
+    for (const auto& p : params) {
+        if (p.second.empty()) args.setFlag(p.first);
+        else args.set(p.first, p.second);
+    }
+    args.cook();
+    return out.str();
+}
+double lastToken(const std::string& line)
+{
+    const size_t sp = line.find_last_of(' ');
+    return std::stod(line.substr(sp + 1));
+}
+} // namespace
+
+TEST(AdaptiveDistanceField, Operators)
+{
+    const auto dir = levelforge_test::scratchDir("adf_ops");
+    const std::string s = (dir / "s.vdb").string(), b = (dir / "b.vdb").string(), d = (dir / "d.vdb").string();
+    const std::string ls = (dir / "ls.vdb").string(), u = (dir / "u.vdb").string();
+    cook("mesh-to-adf", {{"mesh", "builtin:sphere"}, {"output", s}}, {{"voxel-size", "0.05"}, {"quiet", ""}, {"no-bounds", ""}});
+    cook("mesh-to-adf", {{"mesh", "builtin:box"}, {"output", b}}, {{"voxel-size", "0.05"}, {"quiet", ""}, {"no-bounds", ""}});
+    // sample: the distance is the last token; the ADF read back agrees with the analytic sphere
+    const double inSphere = lastToken(cook("sample", {{"vdb", s}, {"x", "0.1"}, {"y", "-0.2"}, {"z", "0.8"}}, {}));
+    EXPECT_NEAR(inSphere, std::sqrt(0.01 + 0.04 + 0.64) - 1.0, 0.01);
+    const AdaptiveDistanceField sphere(openvdb::gridPtrCast<openvdb::FloatGrid>((*readGrids(s))[0]));
+    EXPECT_NEAR(lastToken(cook("sample", {{"vdb", s}, {"x", "0.1"}, {"y", "-0.2"}, {"z", "0.8"}}, {})),
+                sphere.distance(Vec3d(0.1, -0.2, 0.8)), 1e-8);
+    // csg: box minus sphere, both ADFs -> an ADF; at the centre the sphere is removed
+    cook("csg", {{"a", b}, {"b", s}, {"output", d}}, {{"op", "difference"}});
+    const auto dg = readGrids(d);
+    ASSERT_TRUE(isAdaptiveDistanceField(*(*dg)[0]));
+    // (the centre of the removed sphere is a cone tip of the distance, inside an 8³ cell)
+    EXPECT_NEAR(lastToken(cook("sample", {{"vdb", d}, {"x", "0"}, {"y", "0"}, {"z", "0"}}, {})), 1.0, 0.1);
+    EXPECT_NEAR(lastToken(cook("sample", {{"vdb", d}, {"x", "0.95"}, {"y", "0.95"}, {"z", "0.95"}}, {})), -0.05, 0.01);
+    // a level set input: sample trilinearly; csg of a level set with an ADF gives a level set
+    cook("mesh-to-sdf", {{"mesh", "builtin:sphere"}, {"output", ls}}, {{"voxel-size", "0.05"}, {"quiet", ""}});
+    EXPECT_NEAR(lastToken(cook("sample", {{"vdb", ls}, {"x", "0"}, {"y", "0"}, {"z", "0.97"}}, {})), -0.03, 0.005);
+    cook("csg", {{"a", ls}, {"b", b}, {"output", u}}, {{"op", "union"}});
+    const auto ug = readGrids(u);
+    EXPECT_EQ((*ug)[0]->getGridClass(), openvdb::GRID_LEVEL_SET);
+    EXPECT_NEAR(lastToken(cook("sample", {{"vdb", u}, {"x", "1.02"}, {"y", "0"}, {"z", "0"}}, {})), 0.02, 0.005);
+    EXPECT_THROW(cook("sample", {{"vdb", s}, {"x", "nan"}, {"y", "0"}, {"z", "0"}}, {}), InvalidArgumentError);
+}
+#endif
