@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge_bench_adf: adaptively sampled distance fields (Yin, Liu, Wu 2011; issue 6).
 //
 //   levelforge_bench_adf [--res 128,256,512] [--subdivide N] [--threads N] [--repeat N]

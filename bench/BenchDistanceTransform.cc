@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge_bench_dt: the dense distance transforms of Satherley & Jones (issue 4), measured
 // the way the paper's tables are: every chamfer transform (Table 1), EVDT / EVDT full grid /
 // VCVDT (Tables 2, 4, 5) and the 8-pass VCVDT (Table 6), each on a signed field (features =
@@ -16,7 +17,7 @@
 // at the paper's 39.268); chess_pawn.stl voxelized at 60^3 (inside = the sign of the exact
 // reference at each voxel centre, ExactReference.h); a --volume scalar file thresholded at
 // --iso (f >= iso is inside, Eq. 2) when given; the 256^3 sphere for throughput only.
-// Prints markdown (docs/benchmarks.md, "Distance transforms on dense volumes"). Times are the best of --repeats runs.
+// Prints markdown (docs/benchmarks.md, "Volume distance transforms"). Times are the best of --repeats runs.
 #include <levelforge/volume/ChamferDistanceTransform.h>
 #include <levelforge/volume/ExactDistanceTransform.h>
 #include <levelforge/reference/ExactReference.h>

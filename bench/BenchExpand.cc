@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge_bench_expand: widening an exact narrow band (half-width 3) to 20 and 60 voxels,
 // levelforge::expandLevelSet (fast sweeping on sparse topology) side by side with
 // openvdb::tools::dilateSdf, both measured against the exact reference (issue 3).

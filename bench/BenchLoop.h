@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Loop subdivision through OpenMesh (LoopT), shared by the benchmarks that need meshes of
 // ~0.4-1.6 M faces made from the 100 k-face dev meshes.
 #pragma once

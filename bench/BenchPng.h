@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // PNG output for the benchmark pictures, through libpng's simplified API.
 #pragma once
 

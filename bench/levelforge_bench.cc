@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge_bench — levelforge::meshToLevelSet against openvdb::tools::meshToLevelSet.
 //
 // For one mesh (optionally Loop-subdivided), one resolution and one band half-width it runs both

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Finds levelforge's dependencies from the Debian packages. Used by the build and by the
 # installed levelforgeConfig.cmake, so downstream projects get the same targets.
 include(CMakeFindDependencyMacro)

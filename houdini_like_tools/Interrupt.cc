@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — Ctrl-C for the command line (see Interrupt.h).
 #include "Interrupt.h"
 

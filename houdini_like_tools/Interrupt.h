@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — Ctrl-C for the command line.
 //
 // The first SIGINT or SIGTERM asks the running operator to stop: CliProgress::wasInterrupted()

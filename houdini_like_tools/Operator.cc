@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — operator declarations and argument values (see Operator.h).
 #include "Operator.h"
 
@@ -254,6 +255,12 @@ OperatorSpec& OperatorSpec::output(std::string name, std::string help)
 OperatorSpec& OperatorSpec::param(Param p)
 {
     mParams.push_back(std::move(p));
+    return *this;
+}
+
+OperatorSpec& OperatorSpec::params(const std::vector<Param>& ps)
+{
+    mParams.insert(mParams.end(), ps.begin(), ps.end());
     return *this;
 }
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — Houdini-like operators, declared as data.
 //
 // An operator (think SOP: *VDB from Polygons*) declares in ONE place its name, a one-line help,
@@ -126,6 +127,8 @@ public:
     OperatorSpec& input(std::string name, std::string help);
     OperatorSpec& output(std::string name, std::string help);
     OperatorSpec& param(Param p);
+    /// Declares several parameters at once, e.g. a shared group (GridParams.h).
+    OperatorSpec& params(const std::vector<Param>& ps);
     OperatorSpec& example(std::string commandLine); ///< shown in --help
     OperatorSpec& cook(CookFunction fn);
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — operator registry and the generated command line (see OperatorRegistry.h).
 #include "OperatorRegistry.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — the operator registry and the command-line front end generated from it.
 //
 // Operators register themselves (LEVELFORGE_REGISTER_OPERATOR in Operator.h) when the program

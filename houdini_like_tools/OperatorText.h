@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge operators — number formatting shared by the operators' printed summaries.
 #pragma once
 

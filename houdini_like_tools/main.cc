@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — command-line entry point. Everything (operators, options, help, errors) comes
 // from the operator registry; see OperatorRegistry.h.
 #include "Interrupt.h"

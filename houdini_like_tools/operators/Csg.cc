@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge operator `csg`: union, intersection or difference of two ADFs or two level sets
 // (Yin et al. Figure 10; Houdini: VDB Combine in SDF mode).
 #include "Operator.h"

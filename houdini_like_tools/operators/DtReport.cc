@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge operator `dt-report`: every distance transform of Satherley & Jones against the
 // exact Euclidean field, in the columns of the paper's tables (1, 2, 4–7).
 #include "Interrupt.h"

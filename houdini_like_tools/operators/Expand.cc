@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge operator `expand`: widen (or narrow) the band of a level set by fast sweeping.
 // Houdini: *VDB Activate SDF* / *VDB Reshape SDF* (dilate); OpenVDB: tools::dilateSdf.
 #include "Interrupt.h"

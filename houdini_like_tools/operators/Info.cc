@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge operator `info`: describe the grids of a .vdb file (like `vdb_print -l`).
 #include "Operator.h"
 #include "OperatorText.h"

@@ -1,6 +1,9 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge operator `mesh-to-adf`: triangle mesh → adaptively sampled distance field (.vdb).
 // Yin, Liu, Wu 2011 on the VDB tile hierarchy (AdaptiveDistanceField.h).
+#include "GridParams.h"
 #include "Interrupt.h"
+#include "MeshInput.h"
 #include "Operator.h"
 #include "OperatorText.h"
 
@@ -21,14 +24,16 @@
 namespace levelforge::ops {
 namespace {
 
-TriangleMesh loadAdfMesh(const std::string& name)
+/// The ADF covers a padded domain, not a band: no band widths; the finest voxel size.
+GridParamSet adfGridParams()
 {
-    if (name == "builtin:torus-knot") return makeTorusKnot();
-    if (name == "builtin:sphere") return makeIcosphere(Vec3d(0.0), 1.0, 4);
-    if (name == "builtin:box") return makeBox(Vec3d(-1.0), Vec3d(1.0));
-    if (name.rfind("builtin:", 0) == 0)
-        throw InvalidArgumentError("unknown built-in mesh '" + name + "' (builtin:torus-knot, builtin:sphere, builtin:box)");
-    return readMesh(name);
+    GridParamSet g;
+    g.voxelSizeHelp = "Finest voxel edge length, in world units";
+    g.voxelCountHelp = "Finest voxels along the longest axis of the mesh bounding box (the paper's "
+                       "resolution); used when --voxel-size is not given";
+    g.bands = false;
+    g.gridName = "adf";
+    return g;
 }
 
 void cookMeshToAdf(OperatorArgs& args)
@@ -38,20 +43,18 @@ void cookMeshToAdf(OperatorArgs& args)
     const std::string& output = args.output("output");
     std::ostream& out = args.out();
     checkOutputPath(output);
-    const TriangleMesh mesh = loadAdfMesh(input);
+    const TriangleMesh mesh = readMeshInput(input);
     const MeshReport validation = validateMesh(mesh);
     if (!validation.closed())
         args.err() << "levelforge: warning: " << input
                    << ": the mesh is not closed; the ADF's sign is the pseudonormal's verdict and may be wrong\n";
 
     AdaptiveDistanceFieldOptions opt;
-    if (args.isSet("voxel-size")) opt.voxelSize = args.getFloat("voxel-size");
-    else opt.voxelCount = int(args.getInt("voxel-count"));
+    readGridParams(args, opt);
     opt.toleranceVoxels = args.getFloat("tolerance");
     opt.paddingVoxels = args.getFloat("padding");
     opt.computeBounds = !args.getBool("no-bounds");
     opt.boundStride = int(args.getInt("bound-stride"));
-    opt.gridName = args.getString("grid-name");
     CliProgress progress(10, !args.getBool("quiet"));
     opt.interrupter = &progress;
     AdaptiveDistanceFieldStats s;
@@ -98,15 +101,7 @@ LEVELFORGE_REGISTER_OPERATOR(
             "continuous field; `levelforge csg` combines ADFs. Give --voxel-size or --voxel-count.")
         .input("mesh", "Triangle mesh file, or builtin:torus-knot | builtin:sphere | builtin:box")
         .output("output", ".vdb file to write")
-        .param(Param::floating("voxel-size", "Voxel Size", "Finest voxel edge length, in world units")
-                   .above(0.0)
-                   .exclusiveWith("voxel-count"))
-        .param(Param::integer("voxel-count", "Voxel Count",
-                              "Finest voxels along the longest axis of the mesh bounding box (the paper's "
-                              "resolution); used when --voxel-size is not given")
-                   .defaultValue(256)
-                   .range(1, 100000)
-                   .exclusiveWith("voxel-size"))
+        .params(gridParams(adfGridParams()))
         .param(Param::floating("tolerance", "Tolerance",
                                "Refinement (Frisken): subdivide tiles whose reconstruction deviates more than "
                                "this at a test point, in voxels; 0 = the paper's fixed sampling")
@@ -121,7 +116,6 @@ LEVELFORGE_REGISTER_OPERATOR(
                               "level; N > 1: the finest level's bound is measured on a subset)")
                    .defaultValue(8)
                    .range(1, 1000))
-        .param(Param::string("grid-name", "Grid Name", "Name of the grid in the .vdb file").defaultValue("adf"))
         .param(Param::flag("quiet", "Quiet", "Print no progress on stderr"))
         .param(Param::flag("report", "Report", "Print the time of every stage"))
         .example("levelforge mesh-to-adf bunny.obj bunny_adf.vdb --voxel-count 512")

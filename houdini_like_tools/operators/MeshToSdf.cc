@@ -1,18 +1,18 @@
-// levelforge operator `mesh-to-sdf`: triangle mesh → exact narrow-band signed distance .vdb.
-// Houdini: *VDB from Polygons* (distance VDB); vdb_tool: mesh2ls.
+// SPDX-License-Identifier: Apache-2.0
+// levelforge operator `mesh-to-sdf`: triangle mesh → signed distance .vdb, through the library's
+// pipeline (pipeline/MeshToSdf.h). Houdini: *VDB from Polygons* (distance VDB); vdb_tool: mesh2ls.
+#include "GridParams.h"
 #include "Interrupt.h"
+#include "MeshInput.h"
 #include "Operator.h"
 #include "OperatorText.h"
 
 #include <levelforge/core/Exceptions.h>
-#include <levelforge/expand/ExpandLevelSet.h>
-#include <levelforge/io/MeshIO.h>
-#include <levelforge/reference/MeshShapes.h>
-#include <levelforge/mesh/MeshToLevelSet.h>
 #include <levelforge/core/MeshValidation.h>
-#include <levelforge/scan/TetScanConversion.h> // --method scan (issue 5)
-#include <levelforge/core/Progress.h>
+#include <levelforge/io/MeshIO.h>
 #include <levelforge/io/VdbIO.h>
+#include <levelforge/pipeline/MeshToSdf.h>
+#include <levelforge/reference/MeshShapes.h>
 
 #include <openvdb/openvdb.h>
 
@@ -25,29 +25,14 @@
 namespace levelforge::ops {
 namespace {
 
-const char* const kBuiltinPrefix = "builtin:";
-const char* const kMethod = "chang2008-exact-band";
 
-/// Reads a mesh file, or builds one of the built-in shapes ("builtin:torus-knot", ...).
-TriangleMesh loadMesh(const std::string& name, MeshReadInfo& info)
+/// --voxel-size / --voxel-count, --exterior-band / --interior-band (voxels or --world-units),
+/// --grid-name.
+GridParamSet meshGridParams()
 {
-    if (name.rfind(kBuiltinPrefix, 0) == 0) {
-        const std::string shape = name.substr(std::string(kBuiltinPrefix).size());
-        TriangleMesh mesh;
-        if (shape == "torus-knot") {
-            mesh = makeTorusKnot();
-        } else if (shape == "sphere") {
-            mesh = makeIcosphere(Vec3d(0.0), 1.0, 4);
-        } else if (shape == "box") {
-            mesh = makeBox(Vec3d(-1.0), Vec3d(1.0));
-        } else {
-            throw InvalidArgumentError("unknown built-in mesh '" + name +
-                                       "' (builtin:torus-knot, builtin:sphere, builtin:box)");
-        }
-        if (mesh.source.empty()) mesh.source = name;
-        return mesh;
-    }
-    return readMesh(name, info);
+    GridParamSet g;
+    g.worldUnits = true;
+    return g;
 }
 
 void printStats(std::ostream& os, const MeshToLevelSetStats& s)
@@ -71,23 +56,6 @@ void printStats(std::ostream& os, const MeshToLevelSetStats& s)
        << ", finish " << fmt("%.3f", s.secondsFinish) << "\n";
 }
 
-// ---- --method scan (issue 5: T4 scan conversion, TetScanConversion.h)
-TetScanOptions scanOptionsFrom(const MeshToLevelSetOptions& o, const OperatorArgs& args)
-{
-    TetScanOptions s;
-    s.voxelSize = o.voxelSize;
-    s.voxelCount = o.voxelCount;
-    s.exteriorWidth = o.exteriorWidth;
-    s.interiorWidth = o.interiorWidth;
-    s.gridName = o.gridName;
-    s.interrupter = o.interrupter;
-    s.shell = shellMethodFromString(args.getString("shell"));
-    s.coverage = shellCoverageFromString(args.getString("shell-coverage"));
-    s.conservative = args.getBool("conservative");
-    s.maxVoxels = o.maxVoxels;
-    return s;
-}
-
 void printScanStats(std::ostream& os, const TetScanStats& s)
 {
     os << "statistics (scan conversion, shell " << toString(s.shell) << ", coverage " << toString(s.coverage)
@@ -105,7 +73,6 @@ void printScanStats(std::ostream& os, const TetScanStats& s)
        << ", sweep " << fmt("%.3f", s.secondsSweep) << ", fill " << fmt("%.3f", s.secondsFill)
        << ", finish " << fmt("%.3f", s.secondsFinish) << "\n";
 }
-// ---- end --method scan
 
 void cookMeshToSdf(OperatorArgs& args)
 {
@@ -122,7 +89,7 @@ void cookMeshToSdf(OperatorArgs& args)
     checkOutputPath(output);
 
     MeshReadInfo info;
-    const TriangleMesh mesh = loadMesh(input, info);
+    const TriangleMesh mesh = readMeshInput(input, &info);
     if (info.droppedFaces > 0) {
         err << "levelforge: warning: " << input << ": " << info.droppedFaces
             << " faces with fewer than three distinct corners were dropped\n";
@@ -142,72 +109,22 @@ void cookMeshToSdf(OperatorArgs& args)
                "wrong away from the surface\n";
     }
 
-    MeshToLevelSetOptions options;
-    if (args.isSet("voxel-size")) {
-        options.voxelSize = args.getFloat("voxel-size");
-    } else {
-        options.voxelCount = static_cast<int>(args.getInt("voxel-count"));
-    }
-    options.exteriorWidth = static_cast<float>(args.getFloat("exterior-band"));
-    options.interiorWidth = static_cast<float>(args.getFloat("interior-band"));
-    options.gridName = args.getString("grid-name");
+    MeshToSdfOptions options;
+    readGridParams(args, options);
+    options.method = bandMethodFromString(args.getString("method"));
+    options.expansion = expansionFromString(args.getString("expansion"));
+    options.exactBandVoxels = args.getFloat("exact-band");
+    options.shell = shellMethodFromString(args.getString("shell"));
+    options.coverage = shellCoverageFromString(args.getString("shell-coverage"));
+    options.conservative = args.getBool("conservative");
+    options.source = mesh.source.empty() ? input : mesh.source;
     CliProgress progress(10, !quiet);
     options.interrupter = &progress;
 
-    // --expansion sweep: exact band of --exact-band voxels, then fast sweeping to the full band.
-    const std::string expansion = args.getString("expansion");
-    const bool vector = expansion == "vector";
-    const bool sweep = expansion == "sweep" || vector;
-    const float exteriorTarget = options.exteriorWidth, interiorTarget = options.interiorWidth;
-    if (sweep) {
-        const float exact = static_cast<float>(args.getFloat("exact-band"));
-        options.exteriorWidth = std::min(options.exteriorWidth, exact);
-        options.interiorWidth = std::min(options.interiorWidth, exact);
-    }
+    MeshToSdfStats stats;
+    const openvdb::FloatGrid::Ptr grid = meshToSdf(mesh, options, &stats);
+    const double convertSeconds = stats.seconds;
 
-    MeshToLevelSetStats stats;
-    const auto t1 = Clock::now();
-    const bool scan = args.getString("method") == "scan"; // issue 5
-    TetScanStats scanStats;
-    openvdb::FloatGrid::Ptr grid;
-    openvdb::Vec3fGrid::Ptr closest; // exact closest points of the band, for --expansion vector
-    openvdb::Int32Grid::Ptr closestTriangles;
-    if (scan) {
-        grid = meshToLevelSetScan(mesh, scanOptionsFrom(options, args), &scanStats);
-    } else if (vector) {
-        LevelSetWithClosestPoints r = meshToLevelSetWithClosestPoints(mesh, options, &stats);
-        grid = r.levelSet;
-        closest = r.closestPoints;
-        closestTriangles = r.closestTriangles;
-    } else {
-        grid = meshToLevelSet(mesh, options, &stats);
-    }
-    if (sweep) {
-        ExpandLevelSetOptions expand;
-        expand.exteriorWidth = exteriorTarget;
-        expand.interiorWidth = interiorTarget;
-        expand.inputExteriorWidth = options.exteriorWidth;
-        expand.inputInteriorWidth = options.interiorWidth;
-        expand.interrupter = &progress;
-        if (vector) {
-            expand.method = ExpansionMethod::Vector;
-            if (closest) expand.closestPoints = &closest->tree();
-            if (closestTriangles) {
-                expand.closestTriangles = &closestTriangles->tree();
-                expand.mesh = &mesh;
-            }
-        }
-        grid = expandLevelSet(*grid, expand);
-        options.exteriorWidth = exteriorTarget;
-        options.interiorWidth = interiorTarget;
-    }
-    const double convertSeconds = std::chrono::duration<double>(Clock::now() - t1).count();
-
-    stampLevelSetMetadata(*grid, options.exteriorWidth, options.interiorWidth,
-                          mesh.source.empty() ? input : mesh.source,
-                          sweep ? (std::string(scan ? "erleben-dohlmann-t4-scan" : "chang2008-exact-band") +
-                                   (vector ? "+satherley-jones-vcvdt8" : "+zhao2005-fast-sweeping"))
-                                : (scan ? "erleben-dohlmann-t4-scan" : kMethod));
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
     writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
@@ -217,14 +134,14 @@ void cookMeshToSdf(OperatorArgs& args)
     out << "levelforge: wrote " << output << "\n"
         << "  grid '" << grid->getName() << "': voxel size " << fmt("%.6g", voxelSize)
         << " (world units), " << withThousands(grid->activeVoxelCount()) << " active voxels\n"
-        << "  band: " << fmt("%g", options.exteriorWidth) << " voxels outside, "
-        << fmt("%g", options.interiorWidth) << " voxels inside\n"
+        << "  band: " << fmt("%g", stats.exteriorBandVoxels) << " voxels outside, "
+        << fmt("%g", stats.interiorBandVoxels) << " voxels inside\n"
         << "  mesh: " << withThousands(mesh.triangleCount()) << " triangles, "
         << withThousands(mesh.vertexCount()) << " vertices\n"
         << "  time: " << fmt("%.2f", convertSeconds) << " s conversion, "
         << fmt("%.2f", totalSeconds) << " s total\n";
-    if (report && !scan) printStats(out, stats);
-    if (report && scan) printScanStats(out, scanStats);
+    if (report && options.method == BandMethod::Chang) printStats(out, stats.band);
+    if (report && options.method == BandMethod::Scan) printScanStats(out, stats.scan);
 }
 
 } // namespace
@@ -241,23 +158,7 @@ LEVELFORGE_REGISTER_OPERATOR(
             "output file appears). Give --voxel-size or --voxel-count, not both.")
         .input("mesh", "Triangle mesh file, or builtin:torus-knot | builtin:sphere | builtin:box")
         .output("output", ".vdb file to write")
-        .param(Param::floating("voxel-size", "Voxel Size", "Voxel edge length, in world units")
-                   .above(0.0)
-                   .exclusiveWith("voxel-count"))
-        .param(Param::integer("voxel-count", "Voxel Count",
-                              "Voxels along the longest axis of the mesh bounding box; "
-                              "used when --voxel-size is not given")
-                   .defaultValue(256)
-                   .range(1, 100000)
-                   .exclusiveWith("voxel-size"))
-        .param(Param::floating("exterior-band", "Exterior Band Voxels",
-                               "Half-width of the band outside the surface, in voxels")
-                   .defaultValue(3.0)
-                   .range(0.0, 1000.0, Bound::Exclusive, Bound::Inclusive))
-        .param(Param::floating("interior-band", "Interior Band Voxels",
-                               "Half-width of the band inside the surface, in voxels")
-                   .defaultValue(3.0)
-                   .range(0.0, 1000.0, Bound::Exclusive, Bound::Inclusive))
+        .params(gridParams(meshGridParams()))
         .param(Param::choice("expansion", "Expansion",
                              "none/exact: exact distances in the whole band; sweep: exact in "
                              "--exact-band, then fast sweeping (first-order) to the full band; "
@@ -290,8 +191,6 @@ LEVELFORGE_REGISTER_OPERATOR(
                            "--method scan: a voxel is covered when its cell, not only its centre, "
                            "meets a tetrahedron (more rasterized voxels; closes sub-voxel gaps of "
                            "paper shells)"))
-        .param(Param::string("grid-name", "Grid Name", "Name of the grid in the .vdb file")
-                   .defaultValue("surface"))
         .param(Param::flag("quiet", "Quiet", "Print no progress on stderr"))
         .param(Param::flag("report", "Report",
                            "Print the mesh validation summary and conversion statistics"))

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge operator `sample`: the signed distance of an ADF or a level set at a world point.
 #include "Operator.h"
 

@@ -1,11 +1,14 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge operator `volume-to-sdf`: scalar volume (NIfTI, INR, VolPack .den, raw, .vdb) →
 // signed distance level set by the distance transforms of Satherley & Jones.
 // Houdini: *VDB from Volume* / *Convert VDB* (fog to SDF); vdb_tool: iso-surface to level set.
+#include "GridParams.h"
 #include "Interrupt.h"
 #include "Operator.h"
 #include "OperatorText.h"
 
 #include <levelforge/core/Exceptions.h>
+#include <levelforge/core/Metadata.h>
 #include <levelforge/volume/SparseVolumeToLevelSet.h>
 #include <levelforge/io/VdbIO.h>
 #include <levelforge/io/VolumeIO.h>
@@ -94,6 +97,19 @@ ScalarVolume loadVolumeArg(OperatorArgs& args, const std::string& input, VolumeI
 
 namespace {
 
+/// The volume brings its own spacing: no --voxel-size / --voxel-count; bands in voxels of the
+/// smallest spacing.
+GridParamSet volumeGridParams()
+{
+    GridParamSet g;
+    g.resolution = false;
+    g.exteriorHelp = "Half-width of the band kept outside, in voxels (smallest spacing)";
+    g.interiorHelp = "Half-width of the band kept inside, in voxels (smallest spacing)";
+    g.maxBand = 100000.0;
+    g.interiorExcludes = "fill-interior";
+    return g;
+}
+
 VolumeToLevelSetOptions levelSetOptionsFrom(OperatorArgs& args)
 {
     VolumeToLevelSetOptions opt;
@@ -101,10 +117,8 @@ VolumeToLevelSetOptions levelSetOptionsFrom(OperatorArgs& args)
     opt.insideBelow = args.getBool("invert");
     opt.method = volumeDistanceMethodFromName(args.getString("method"));
     opt.subvoxel = args.getBool("subvoxel");
-    opt.exteriorWidth = args.getFloat("exterior-band");
-    opt.interiorWidth = args.getFloat("interior-band");
+    readGridParams(args, opt);
     opt.fillInterior = args.getBool("fill-interior");
-    opt.gridName = args.getString("grid-name");
     if (!args.isSet("iso")) {
         args.err() << "levelforge: note: no --iso given; using 0 (samples >= 0 are inside)\n";
     }
@@ -117,7 +131,7 @@ void writeVolumeLevelSet(const openvdb::FloatGrid::Ptr& grid, const VolumeToLeve
 {
     stampLevelSetMetadata(*grid, opt.exteriorWidth, opt.fillInterior ? grid->background() / hmin : opt.interiorWidth,
                           input, method);
-    grid->insertMeta("levelforge:iso", openvdb::FloatMetadata(opt.iso));
+    grid->insertMeta(meta::kIso, openvdb::FloatMetadata(opt.iso));
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
     writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
@@ -239,19 +253,9 @@ LEVELFORGE_REGISTER_OPERATOR(
         .param(Param::flag("subvoxel", "Sub-voxel Shell",
                            "Seed the transform with exact closest points on the interpolated "
                            "surface (cells split into tetrahedra) instead of binary feature voxels"))
-        .param(Param::floating("exterior-band", "Exterior Band Voxels",
-                               "Half-width of the band kept outside, in voxels (smallest spacing)")
-                   .defaultValue(3.0)
-                   .range(0.0, 100000.0, Bound::Exclusive, Bound::Inclusive))
-        .param(Param::floating("interior-band", "Interior Band Voxels",
-                               "Half-width of the band kept inside, in voxels (smallest spacing)")
-                   .defaultValue(3.0)
-                   .range(0.0, 100000.0, Bound::Exclusive, Bound::Inclusive)
-                   .exclusiveWith("fill-interior"))
+        .params(gridParams(volumeGridParams()))
         .param(Param::flag("fill-interior", "Fill Interior", "Keep every inside voxel active")
                    .exclusiveWith("interior-band"))
-        .param(Param::string("grid-name", "Grid Name", "Name of the grid in the .vdb file")
-                   .defaultValue("surface"))
         .param(Param::string("vdb-grid", "Input VDB Grid", "Grid to read from a .vdb input (default: the first scalar grid)"))
         .param(Param::flag("sparse", "Sparse",
                            ".vdb input: work on the grid's own sparse topology (exact band around the "

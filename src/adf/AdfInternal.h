@@ -1,5 +1,7 @@
-// Private to src/Adf*.cc and src/AdaptiveDistanceField.cc: the reconstruction over an ADF tree
-// and the value pipeline shared by the mesh builder and CSG. See AdaptiveDistanceField.h.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Private to src/adf/: the reconstruction over an ADF tree, the layout of its cells and
+///        the value pipeline shared by the mesh builder and CSG. See AdaptiveDistanceField.h.
 #pragma once
 
 #include <levelforge/adf/AdaptiveDistanceField.h>
@@ -8,8 +10,8 @@
 #include <openvdb/tree/ValueAccessor.h>
 
 #include <array>
-#include <chrono>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace levelforge {
@@ -22,19 +24,21 @@ using FloatLeaf = FloatTree::LeafNodeType;
 using Internal2 = FloatTree::RootNodeType::ChildNodeType;
 using Internal1 = Internal2::ChildNodeType;
 using LeafMask = FloatLeaf::NodeMaskType;
-using Clock = std::chrono::steady_clock;
 
 constexpr uint32_t kNone = 0xffffffffu;
-constexpr const char* kAdfMetaKey = "levelforge:adf";
+/// Layout version, the value of the meta::kAdf metadata.
 constexpr const char* kAdfVersion = "yin2011-vdb-tiles-1";
-
-inline double secondsSince(Clock::time_point t0)
-{
-    return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 /// Index into kAdfCellSize, -1 for other sizes.
 int levelOfSize(int size);
+
+/// Whether unit cell (or block origin) c lies inside the domain's cells [min, max).
+inline bool inDomainCell(const CoordBBox& dom, const Coord& c)
+{
+    for (int k = 0; k < 3; ++k)
+        if (c[k] < dom.min()[k] || c[k] >= dom.max()[k]) return false;
+    return true;
+}
 
 /// A reconstruction cell: size 1, 2, 4, 8 or 128 (0 = none), minimum corner (index space).
 struct CellInfo
@@ -90,6 +94,43 @@ struct Layout
 void makeDomain(Layout& layout, const CoordBBox& cellBox, double paddingVoxels);
 FloatTree::Ptr createTree(const Layout& layout, float background);
 
+/// Cell sizes inside a leaf from its refined-cell mask (as cellInLeaf, by bit operations):
+/// bit q of sub4 / sub2 tells whether 4³ block q / 2³ block q holds an active voxel.
+struct LeafCellSizes
+{
+    uint8_t sub4 = 0;
+    uint64_t sub2 = 0;
+    LeafCellSizes() = default;
+    explicit LeafCellSizes(const LeafMask& m)
+    {
+        for (int bx = 0; bx < 4; ++bx) {
+            const uint64_t w = m.template getWord<uint64_t>(openvdb::Index(2 * bx)) | m.template getWord<uint64_t>(openvdb::Index(2 * bx + 1));
+            if (!w) continue;
+            for (int by = 0; by < 4; ++by)
+                for (int bz = 0; bz < 4; ++bz)
+                    if ((w >> (16 * by + 2 * bz)) & 0x303u) {
+                        sub2 |= uint64_t(1) << ((bx << 4) | (by << 2) | bz);
+                        sub4 |= uint8_t(1u << (((bx >> 1) << 2) | ((by >> 1) << 1) | (bz >> 1)));
+                    }
+        }
+    }
+    /// Size of the cell holding local unit cell (x, y, z), x, y, z in [0, 8).
+    int size(int x, int y, int z) const
+    {
+        if (!((sub4 >> (((x >> 2) << 2) | ((y >> 2) << 1) | (z >> 2))) & 1)) return 4;
+        if (!((sub2 >> (((x >> 1) << 4) | ((y >> 1) << 2) | (z >> 1))) & 1)) return 2;
+        return 1;
+    }
+    /// Cells of sizes 1, 2 and 4 in the leaf.
+    void count(uint64_t& n1, uint64_t& n2, uint64_t& n4) const
+    {
+        const int s4 = __builtin_popcount(sub4), s2 = __builtin_popcountll(sub2);
+        n4 += uint64_t(8 - s4);
+        n2 += uint64_t(8 * s4 - s2);
+        n1 += uint64_t(8 * s2);
+    }
+};
+
 /// Source of the free samples.
 class SampleProvider
 {
@@ -115,6 +156,11 @@ struct PipelineResult
 PipelineResult fillValues(FloatTree& tree, const Layout& layout, SampleProvider& provider,
                           openvdb::util::NullInterrupter* interrupter);
 
+/// The metadata key of the stated bound of a level (meta::kAdfBoundLevelPattern).
+std::string boundLevelKey(int level);
+
+/// Marks the grid as an ADF: class, layout version, domain, sampling description, the stated
+/// bound per level and the generator (the meta:: keys).
 void stampAdfMetadata(openvdb::FloatGrid& grid, const CoordBBox& domain,
                       const std::array<double, kAdfLevels>& bounds);
 

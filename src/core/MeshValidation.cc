@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — mesh validation. See MeshValidation.h.
 #include <levelforge/core/MeshValidation.h>
 

@@ -1,4 +1,6 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — progress reporting and interruption (see Progress.h).
+#include "detail/ProgressCheck.h"
 #include <levelforge/core/Progress.h>
 
 #include <levelforge/core/Exceptions.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Angle-weighted pseudonormals (Bærentzen & Aanæs 2005). See PseudoNormals.h.
 #include <levelforge/core/PseudoNormals.h>
 

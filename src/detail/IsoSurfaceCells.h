@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge internal — the triangles of the interpolated iso-surface in one cell of 8 samples
 // (Satherley & Jones §4.1): the cell is split into 6 tetrahedra around its main diagonal
 // (Kuhn/Freudenthal; neighbouring cells agree on shared faces, so the surface is closed), and in

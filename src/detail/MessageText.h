@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — small helpers for error messages (internal to the library's .cc files).
 #pragma once
 

@@ -1,80 +1,27 @@
-// levelforge — fast sweeping expansion of a level set on sparse VDB topology (see the header).
-#include <levelforge/expand/ExpandLevelSet.h>
-#include <levelforge/expand/VectorExpansion.h>
+// SPDX-License-Identifier: Apache-2.0
+// The fast sweeping method of the expansion: Godunov updates swept leaf by leaf on sparse VDB
+// topology (see src/expand/FastSweeping.h).
+#include "detail/ProgressCheck.h"
+#include "expand/FastSweepingInternal.h"
 
-#include <levelforge/core/Exceptions.h>
-#include <levelforge/core/MeshValidation.h>
 #include <levelforge/core/Progress.h>
-
-#include <openvdb/tools/ChangeBackground.h>
-#include <openvdb/tools/LevelSetUtil.h>
-#include <openvdb/tools/Morphology.h>
-#include <openvdb/tools/Prune.h>
-#include <openvdb/tools/SignedFloodFill.h>
-#include <openvdb/tree/LeafManager.h>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <memory>
-#include <sstream>
 #include <vector>
 
 #ifdef __SSE__
 #include <xmmintrin.h>
 #endif
 
-namespace levelforge {
-
-namespace fast_sweeping_internal {
-
-namespace {
-/// Largest Σ max(|x_i| - a, 0) over lattice points x with |x| < radius: the face steps needed
-/// after `a` cube steps (the lattice Minkowski sum of the cube and the octahedron contains x
-/// iff that sum is <= b).
-int faceStepsNeeded(double radius, int a)
-{
-    const int n = int(std::floor(radius));
-    const double r2 = radius * radius;
-    int b = 0;
-    for (int x = 0; x <= n; ++x) {
-        for (int y = 0; y <= n; ++y) {
-            const double rest = r2 - double(x) * x - double(y) * y;
-            if (rest <= 0) break;
-            int z = int(std::floor(std::sqrt(rest)));
-            while (z > 0 && double(x) * x + double(y) * y + double(z) * z >= r2) --z;
-            if (double(x) * x + double(y) * y + double(z) * z >= r2) continue;
-            b = std::max(b, std::max(x - a, 0) + std::max(y - a, 0) + std::max(z - a, 0));
-        }
-    }
-    return b;
-}
-} // namespace
-
-void dilationPattern(double radius, int& cubeSteps, int& faceSteps)
-{
-    cubeSteps = faceSteps = 0;
-    if (!(radius > 0)) return;
-    const int n = int(std::ceil(radius));
-    int bestA = n, bestB = 0;
-    // a + b is minimal (= ceil(radius) or so) from about 0.41 R on; search a small window.
-    const int lo = std::max(0, int(std::floor(0.33 * radius)) - 1);
-    for (int a = lo; a <= n; ++a) {
-        const int b = faceStepsNeeded(radius, a);
-        if (a + b < bestA + bestB) { bestA = a; bestB = b; }
-        if (a > int(0.5 * radius) + 2) break;
-    }
-    cubeSteps = bestA;
-    faceSteps = bestB;
-}
-
-} // namespace fast_sweeping_internal
+namespace levelforge::fast_sweeping_internal {
 
 namespace {
 
@@ -82,33 +29,6 @@ using FloatTree = openvdb::FloatTree;
 using LeafT = FloatTree::LeafNodeType;
 using MaskT = LeafT::NodeMaskType;
 using openvdb::Coord;
-using Clock = std::chrono::steady_clock;
-
-constexpr float kBig = 1e30f; // "not yet reached" / "not part of the domain"
-
-double seconds(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-std::string num(double v)
-{
-    std::ostringstream os;
-    os << v;
-    return os.str();
-}
-
-double readBandMeta(const openvdb::FloatGrid& g, const char* key, double fallback)
-{
-    if (auto m = g.getMetadata<openvdb::FloatMetadata>(key)) return m->value();
-    if (auto m = g.getMetadata<openvdb::DoubleMetadata>(key)) return m->value();
-    return fallback;
-}
-
-void checkWidth(double v, const char* name, bool allowZero = false)
-{
-    if (!std::isfinite(v) || v < 0 || (!allowZero && v == 0)) {
-        throw InvalidArgumentError(std::string("expandLevelSet: ") + name + " must be finite and " +
-                                   (allowZero ? ">= 0" : "> 0") + ", got " + num(v));
-    }
-}
 
 /// One voxel update: Godunov upwind solution of |∇φ| = 1 from the neighbour magnitudes
 /// (world units; h = voxel size, h2 = h²). Single precision with the discriminants written as
@@ -687,362 +607,15 @@ private:
     openvdb::util::NullInterrupter* mInterrupter;
 };
 
-
-/// floor(a / b) for b > 0
-inline int64_t floorDiv(int64_t a, int64_t b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
-
-/// Leaf-granular candidate domain of the sweep: every leaf node that may hold a voxel closer than
-/// `radius` voxels to an active voxel of `band` (the gap between the leaf's box and the box of
-/// a band leaf's active voxels is below the radius), fully active. One pass over a dense grid
-/// of leaf cells instead of `radius` voxel dilation steps; it contains the Euclidean dilation.
-/// Returns null (the caller dilates voxel by voxel) when that grid would be too large.
-openvdb::MaskTree::Ptr leafDomain(const openvdb::MaskTree& band, double radius, uint64_t& leafCount)
-{
-    using MaskLeaf = openvdb::MaskTree::LeafNodeType;
-    std::vector<const MaskLeaf*> leaves;
-    band.getNodes(leaves);
-    leafCount = 0;
-    if (leaves.empty() || !(radius >= 0)) return nullptr;
-    const size_t n = leaves.size();
-    std::vector<openvdb::CoordBBox> boxes(n);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            openvdb::CoordBBox b;
-            for (auto it = leaves[i]->cbeginValueOn(); it; ++it) b.expand(it.getCoord());
-            boxes[i] = b;
-        }
-    });
-    const int64_t rc = int64_t(std::ceil(radius));
-    const double r2 = radius * radius;
-    int64_t lo[3] = {INT64_MAX, INT64_MAX, INT64_MAX}, hi[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
-    for (const auto& b : boxes) {
-        if (b.empty()) continue;
-        for (int k = 0; k < 3; ++k) {
-            lo[k] = std::min(lo[k], floorDiv(int64_t(b.min()[k]) - 7 - rc, 8));
-            hi[k] = std::max(hi[k], floorDiv(int64_t(b.max()[k]) + rc, 8));
-        }
-    }
-    if (lo[0] > hi[0]) return nullptr;
-    const int64_t dim[3] = {hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1};
-    const double cells = double(dim[0]) * double(dim[1]) * double(dim[2]);
-    if (cells > double(1 << 24)) return nullptr; // about 2048^3 voxels: dilate instead
-    std::unique_ptr<std::atomic<uint8_t>[]> grid(new std::atomic<uint8_t>[size_t(cells)]());
-    // the gap between leaf cell I (voxels 8I .. 8I+7) and the voxel range [a, b] along one axis
-    auto gap = [](int64_t I, int64_t a, int64_t b) {
-        return double(std::max<int64_t>({0, a - (8 * I + 7), 8 * I - b}));
-    };
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            const openvdb::CoordBBox& b = boxes[i];
-            if (b.empty()) continue;
-            const int64_t a0 = b.min()[0], b0 = b.max()[0], a1 = b.min()[1], b1 = b.max()[1];
-            const int64_t a2 = b.min()[2], b2 = b.max()[2];
-            for (int64_t I = floorDiv(a0 - 7 - rc, 8); I <= floorDiv(b0 + rc, 8); ++I) {
-                const double g0 = gap(I, a0, b0);
-                const double rem0 = r2 - g0 * g0;
-                if (rem0 <= 0) continue;
-                for (int64_t J = floorDiv(a1 - 7 - rc, 8); J <= floorDiv(b1 + rc, 8); ++J) {
-                    const double g1 = gap(J, a1, b1);
-                    const double rem1 = rem0 - g1 * g1;
-                    if (rem1 <= 0) continue;
-                    const int64_t s = int64_t(std::ceil(std::sqrt(rem1)));
-                    const int64_t row = ((I - lo[0]) * dim[1] + (J - lo[1])) * dim[2] - lo[2];
-                    for (int64_t K = floorDiv(a2 - 7 - s, 8); K <= floorDiv(b2 + s, 8); ++K) {
-                        const double g2 = gap(K, a2, b2);
-                        if (g2 * g2 < rem1) grid[size_t(row + K)].store(1, std::memory_order_relaxed);
-                    }
-                }
-            }
-        }
-    });
-    openvdb::MaskTree::Ptr dom(new openvdb::MaskTree(false));
-    openvdb::tree::ValueAccessor<openvdb::MaskTree> acc(*dom);
-    size_t c = 0;
-    for (int64_t I = lo[0]; I <= hi[0]; ++I)
-        for (int64_t J = lo[1]; J <= hi[1]; ++J)
-            for (int64_t K = lo[2]; K <= hi[2]; ++K, ++c) {
-                if (!grid[c].load(std::memory_order_relaxed)) continue;
-                acc.touchLeaf(Coord(int(8 * I), int(8 * J), int(8 * K)))->setValuesOn();
-                ++leafCount;
-            }
-    return dom;
-}
-
 } // namespace
 
-openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
-                                       const ExpandLevelSetOptions& opt,
-                                       ExpandLevelSetStats* statsOut)
+void sweepLeaves(openvdb::FloatTree& tree, const openvdb::FloatTree& frozen, float h, float tol, float capPos,
+                 float capNeg, int maxIterations, openvdb::util::NullInterrupter* interrupter,
+                 ExpandLevelSetStats& stats)
 {
-    using fast_sweeping_internal::dilationPattern;
-    ExpandLevelSetStats stats;
-    auto t0 = Clock::now();
-
-    // ---- validate
-    if (input.tree().activeVoxelCount() == 0) {
-        throw InvalidArgumentError("expandLevelSet: the input grid '" + input.getName() +
-                                   "' has no active voxels (an empty level set)");
-    }
-    if (!input.hasUniformVoxels()) {
-        throw InvalidArgumentError("expandLevelSet: the input grid '" + input.getName() +
-                                   "' has non-uniform voxels; a level set needs cubic voxels");
-    }
-    if (input.getGridClass() != openvdb::GRID_LEVEL_SET &&
-        input.getGridClass() != openvdb::GRID_UNKNOWN) {
-        throw InvalidArgumentError("expandLevelSet: the input grid '" + input.getName() +
-                                   "' is not a level set (class " +
-                                   openvdb::GridBase::gridClassToString(input.getGridClass()) + ")");
-    }
-    const double h = input.voxelSize()[0];
-    const float inBackground = input.background();
-    if (!(inBackground > 0) || !std::isfinite(inBackground)) {
-        throw InvalidArgumentError("expandLevelSet: the input grid '" + input.getName() +
-                                   "' has background " + num(inBackground) +
-                                   "; a level set needs a positive background");
-    }
-    const double toVoxels = opt.units == WidthUnits::World ? 1.0 / h : 1.0;
-    checkWidth(opt.exteriorWidth, "exteriorWidth");
-    if (!opt.fillInterior) checkWidth(opt.interiorWidth, "interiorWidth");
-    checkWidth(opt.coverageMargin, "coverageMargin", true);
-    checkWidth(opt.coverageMarginPerVoxel, "coverageMarginPerVoxel", true);
-    checkWidth(opt.inputExteriorWidth, "inputExteriorWidth", true);
-    checkWidth(opt.inputInteriorWidth, "inputInteriorWidth", true);
-    if (opt.domain == ExpansionDomain::BoundingBox) checkWidth(opt.boundingBoxMargin, "boundingBoxMargin", true);
-    if (!(opt.tolerance > 0) || !std::isfinite(opt.tolerance)) {
-        throw InvalidArgumentError("expandLevelSet: tolerance must be finite and > 0, got " +
-                                   num(opt.tolerance));
-    }
-    if (opt.maxIterations < 1) {
-        throw InvalidArgumentError("expandLevelSet: maxIterations must be >= 1, got " +
-                                   std::to_string(opt.maxIterations));
-    }
-    const double wExt = opt.exteriorWidth * toVoxels;
-    const double wInt = opt.fillInterior ? 0.0 : opt.interiorWidth * toVoxels;
-    const double bboxMargin = opt.boundingBoxMargin * toVoxels;
-    constexpr double kMaxWidth = 100000.0;
-    for (double w : {wExt, wInt, bboxMargin}) {
-        if (w > kMaxWidth) {
-            throw ResourceLimitError("expandLevelSet: a width of " + num(w) +
-                                     " voxels is beyond what fits in memory (limit " +
-                                     num(kMaxWidth) + " voxels)");
-        }
-    }
-    double w0Ext = opt.inputExteriorWidth > 0 ? opt.inputExteriorWidth
-                   : readBandMeta(input, "levelforge:exterior_band_voxels", inBackground / h);
-    double w0Int = opt.inputInteriorWidth > 0 ? opt.inputInteriorWidth
-                   : readBandMeta(input, "levelforge:interior_band_voxels", inBackground / h);
-    w0Ext = std::max(0.0, w0Ext);
-    w0Int = std::max(0.0, w0Int);
-    stats.voxelSize = h;
-    stats.inputExteriorWidth = w0Ext;
-    stats.inputInteriorWidth = w0Int;
-    stats.frozenVoxels = input.tree().activeVoxelCount();
-
-    // ---- resource estimate before any allocation: a shell of the input's surface area
-    const double area = double(stats.frozenVoxels) / std::max(1.0, w0Ext + w0Int);
-    const bool vectorMethod = opt.method == ExpansionMethod::Vector;
-    const double perVoxel = vectorMethod ? 0.0 : opt.coverageMarginPerVoxel;
-    const double keepExt = wExt + opt.coverageMargin + perVoxel * std::max(0.0, wExt - w0Ext);
-    const double keepInt = wInt + opt.coverageMargin + perVoxel * std::max(0.0, wInt - w0Int);
-    stats.method = opt.method;
-    const openvdb::CoordBBox inBox = input.evalActiveVoxelBoundingBox();
-    double lowerEstimate = 0;
-    if (opt.domain == ExpansionDomain::BoundingBox) {
-        const double e = 2 * std::ceil(bboxMargin);
-        lowerEstimate = (inBox.dim().x() + e) * (inBox.dim().y() + e) * (inBox.dim().z() + e);
-    } else {
-        lowerEstimate = area * (std::max(0.0, keepExt - w0Ext) + (opt.fillInterior ? 0.0 : std::max(0.0, keepInt - w0Int)));
-        lowerEstimate += double(stats.frozenVoxels);
-        // the ball of radius wExt around a surface point, less the object, is in the band
-        const double r = wExt - 1.0;
-        if (r > 0) {
-            lowerEstimate = std::max(lowerEstimate,
-                                     4.0 / 3.0 * M_PI * r * r * r - double(inBox.volume()));
-        }
-    }
-    if (opt.maxVoxels && lowerEstimate > double(opt.maxVoxels)) {
-        throw ResourceLimitError("expandLevelSet: the expanded band would hold about " +
-                                 num(lowerEstimate) + " voxels, more than the limit of " +
-                                 std::to_string(opt.maxVoxels) + " (reduce the widths)");
-    }
-    if (opt.interrupter) opt.interrupter->start("fast sweeping");
-    progress_internal::check(opt.interrupter, 0);
-
-    // ---- topology: flood-filled copy of the input, dilated Euclidean-completely
-    FloatTree::Ptr tree(new FloatTree(input.tree()));
-    openvdb::tools::signedFloodFill(*tree);
-    openvdb::MaskTree::Ptr interior;
-    if (opt.fillInterior) {
-        openvdb::FloatGrid::Ptr tmp = openvdb::FloatGrid::create(tree);
-        auto boolMask = openvdb::tools::sdfInteriorMask(*tmp, 0.0f);
-        interior.reset(new openvdb::MaskTree(boolMask->tree(), false, openvdb::TopologyCopy()));
-    }
-    openvdb::MaskTree band(input.tree(), false, openvdb::TopologyCopy());
-    band.voxelizeActiveTiles();
-    if (opt.domain == ExpansionDomain::BoundingBox) {
-        openvdb::CoordBBox box = inBox;
-        box.expand(int(std::ceil(bboxMargin)));
-        openvdb::MaskTree boxMask(false);
-        boxMask.sparseFill(box, true, true);
-        tree->topologyUnion(boxMask);
-    } else {
-        // (the candidates only need to hold every voxel with d < w; the margin is trimmed from)
-        const double rExt = std::max(0.0, wExt - w0Ext + std::sqrt(3.0));
-        const double rInt = opt.fillInterior ? 0.0 : std::max(0.0, wInt - w0Int + std::sqrt(3.0));
-        const double rSmall = std::min(rExt, rInt), rLarge = std::max(rExt, rInt);
-        auto dilated = [&](double r) {
-            openvdb::MaskTree::Ptr m(new openvdb::MaskTree(band));
-            int a = 0, b = 0;
-            dilationPattern(r, a, b);
-            if (r == rLarge) { stats.dilationCubeSteps = a; stats.dilationFaceSteps = b; }
-            if (a > 0) openvdb::tools::dilateActiveValues(*m, a, openvdb::tools::NN_FACE_EDGE_VERTEX,
-                                                         openvdb::tools::IGNORE_TILES);
-            progress_internal::check(opt.interrupter, 0);
-            if (b > 0) openvdb::tools::dilateActiveValues(*m, b, openvdb::tools::NN_FACE,
-                                                         openvdb::tools::IGNORE_TILES);
-            progress_internal::check(opt.interrupter, 0);
-            return m;
-        };
-        uint64_t domainLeaves = 0;
-        openvdb::MaskTree::Ptr domain =
-            vectorMethod ? nullptr : leafDomain(band, rLarge, domainLeaves);
-        if (domain) {
-            // Sweep: whole leaves, the values capped at the kept widths (see Sweeper)
-            if (opt.maxVoxels && domainLeaves * 512 > opt.maxVoxels) {
-                throw ResourceLimitError("expandLevelSet: the candidate band holds " +
-                                         std::to_string(domainLeaves * 512) +
-                                         " voxels, more than the limit of " +
-                                         std::to_string(opt.maxVoxels) + " (reduce the widths)");
-            }
-            progress_internal::check(opt.interrupter, 0);
-            tree->topologyUnion(*domain);
-        } else {
-            openvdb::MaskTree::Ptr large = dilated(rLarge);
-            if (opt.maxVoxels && large->activeVoxelCount() > opt.maxVoxels) {
-                throw ResourceLimitError("expandLevelSet: the dilated band holds " +
-                                         std::to_string(large->activeVoxelCount()) +
-                                         " voxels, more than the limit of " +
-                                         std::to_string(opt.maxVoxels) + " (reduce the widths)");
-            }
-            tree->topologyUnion(*large);
-            if (rSmall < rLarge) {
-                // Keep the larger dilation only on the side that asked for it.
-                openvdb::MaskTree::Ptr small = dilated(rSmall);
-                const bool dropNegative = rInt < rExt; // interior is the small side
-                openvdb::tree::LeafManager<FloatTree> lm(*tree);
-                lm.foreach([&](LeafT& leaf, size_t) {
-                    const openvdb::MaskTree::LeafNodeType* sl = small->probeConstLeaf(leaf.origin());
-                    const openvdb::MaskTree::LeafNodeType* bl = band.probeConstLeaf(leaf.origin());
-                    for (auto it = leaf.beginValueOn(); it; ++it) {
-                        const openvdb::Index j = it.pos();
-                        if ((sl && sl->isValueOn(j)) || (bl && bl->isValueOn(j))) continue;
-                        const bool neg = *it < 0;
-                        if (neg == dropNegative) leaf.setValueOff(j);
-                    }
-                });
-            }
-        }
-    }
-    if (interior) tree->topologyUnion(*interior);
-    tree->voxelizeActiveTiles();
-    stats.secondsTopology = seconds(t0);
-    if (opt.maxVoxels && tree->activeVoxelCount() > opt.maxVoxels) {
-        throw ResourceLimitError("expandLevelSet: the expanded grid holds " +
-                                 std::to_string(tree->activeVoxelCount()) +
-                                 " voxels, more than the limit of " + std::to_string(opt.maxVoxels));
-    }
-    progress_internal::check(opt.interrupter, 0);
-
-    // ---- sweeps
-    auto t1 = Clock::now();
-    if (vectorMethod) {
-        vector_expansion_internal::PropagationStats ps;
-        stats.candidateVoxels = tree->activeVoxelCount();
-        vector_expansion_internal::ShellVectors shell;
-        shell.points = opt.closestPoints;
-        if (opt.closestPoints && opt.closestTriangles && opt.mesh) {
-            requireUsableMesh(*opt.mesh); // indices in range, finite points, not empty
-            shell.triangles = opt.closestTriangles;
-            shell.mesh = opt.mesh;
-        }
-        vector_expansion_internal::propagateClosestVectors(*tree, input.tree(), shell, input.transform(),
-                                                           kBig, opt.interrupter, &ps);
-        stats.refinedVoxels = ps.refinedVoxels;
-        stats.walkSteps = ps.walkSteps;
-        stats.refineEvaluations = ps.refineEvaluations;
-        stats.refineRounds = ps.refineRounds;
-        stats.secondsVectorSetup = ps.secondsSetup;
-        stats.secondsVectorPasses = ps.secondsPasses;
-        stats.secondsVectorFinish = ps.secondsFinish;
-        stats.iterations = 1;
-        stats.converged = true;
-        stats.estimatedVectors = ps.estimatedVectors;
-        stats.unreachedVoxels = ps.unreachedVoxels;
-    } else {
-        // values at or beyond the kept widths are trimmed afterwards: leave them unreached
-        const bool capped = opt.domain == ExpansionDomain::Band;
-        const float capPos = capped ? float(keepExt * h) : kBig;
-        const float capNeg = capped && !opt.fillInterior ? float(keepInt * h) : kBig;
-        Sweeper sweeper(*tree, input.tree(), float(h), float(opt.tolerance * h), capPos, capNeg,
-                        opt.interrupter);
-        stats.candidateVoxels = sweeper.candidateVoxels();
-        sweeper.run(opt.maxIterations, stats);
-    }
-    stats.secondsSweep = seconds(t1);
-
-    // ---- finish: keep |φ| < width + margin, background, prune
-    auto t2 = Clock::now();
-    const bool box = opt.domain == ExpansionDomain::BoundingBox;
-    const float keepExtW = float(keepExt * h), keepIntW = float(keepInt * h);
-    float background = 0;
-    {
-        openvdb::tree::LeafManager<FloatTree> lm(*tree);
-        // trim, and find the largest kept magnitude (for the box / fill modes)
-        std::vector<float> leafMax(lm.leafCount(), 0.0f);
-        lm.foreach([&](LeafT& leaf, size_t idx) {
-            float mx = 0;
-            for (auto it = leaf.beginValueOn(); it; ++it) {
-                const float v = *it;
-                const float a = std::abs(v);
-                bool keep = a < kBig * 0.5f;
-                if (keep && !box) keep = v < 0 ? (opt.fillInterior || a < keepIntW) : a < keepExtW;
-                if (keep) mx = std::max(mx, a);
-                else leaf.setValueOff(it.pos());
-            }
-            leafMax[idx] = mx;
-        });
-        float mx = 0;
-        for (float m : leafMax) mx = std::max(mx, m);
-        background = box || opt.fillInterior ? std::max({mx, keepExtW, float(h)})
-                                             : std::max(keepExtW, keepIntW);
-        if (opt.fillInterior && !box) background = std::max(background, keepExtW);
-        // values just above the kept width must not exceed the background
-        background = std::nextafter(background, std::numeric_limits<float>::max());
-    }
-    openvdb::tools::changeLevelSetBackground(*tree, background);
-    openvdb::tools::pruneLevelSet(*tree);
-    openvdb::FloatGrid::Ptr out = openvdb::FloatGrid::create(tree);
-    out->setTransform(input.transform().copy());
-    for (auto it = input.beginMeta(); it != input.endMeta(); ++it) {
-        out->insertMeta(it->first, *it->second);
-    }
-    // The band is now complete (every voxel with |d| < width is active) to the target widths.
-    const double bgVoxels = background / h;
-    if (input.getMetadata<openvdb::FloatMetadata>("levelforge:exterior_band_voxels")) {
-        out->insertMeta("levelforge:exterior_band_voxels",
-                        openvdb::FloatMetadata(float(box ? bgVoxels : wExt)));
-    }
-    if (input.getMetadata<openvdb::FloatMetadata>("levelforge:interior_band_voxels")) {
-        out->insertMeta("levelforge:interior_band_voxels",
-                        openvdb::FloatMetadata(float(box || opt.fillInterior ? bgVoxels : wInt)));
-    }
-    out->setName(input.getName());
-    out->setGridClass(openvdb::GRID_LEVEL_SET);
-    stats.activeVoxels = out->activeVoxelCount();
-    stats.secondsFinish = seconds(t2);
-    if (opt.interrupter) { opt.interrupter->wasInterrupted(100); opt.interrupter->end(); }
-    if (statsOut) *statsOut = stats;
-    return out;
+    Sweeper sweeper(tree, frozen, h, tol, capPos, capNeg, interrupter);
+    stats.candidateVoxels = sweeper.candidateVoxels();
+    sweeper.run(maxIterations, stats);
 }
 
-} // namespace levelforge
+} // namespace levelforge::fast_sweeping_internal

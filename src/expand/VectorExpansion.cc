@@ -1,5 +1,9 @@
-// levelforge — sparse 8-pass VCVDT over VDB leaves (see VectorExpansion.h).
-#include <levelforge/expand/VectorExpansion.h>
+// SPDX-License-Identifier: Apache-2.0
+// The vector method of the expansion: the sparse 8-pass VCVDT over VDB leaves (see
+// src/expand/VectorExpansion.h).
+#include "expand/VectorExpansion.h"
+
+#include "detail/Timer.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/PseudoNormals.h>
@@ -14,7 +18,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -28,8 +31,7 @@ using LeafT = FloatTree::LeafNodeType;
 using openvdb::Coord;
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
-using Clock = std::chrono::steady_clock;
-double seconds(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+using detail::Clock;
 
 /// Offset to the closest feature point (voxel units), its squared length (Leymarie–Levine) and
 /// the triangle it lies on (-1: unknown).
@@ -581,14 +583,14 @@ void propagateClosestVectors(openvdb::FloatTree& tree, const openvdb::FloatTree&
     const float voxelSize = float(transform.voxelSize()[0]);
     tree.voxelizeActiveTiles();
     SparseVcvdt vcvdt(tree, frozen, shell, voxelSize, stats);
-    stats.secondsSetup = seconds(t0);
+    stats.secondsSetup = detail::secondsSince(t0);
     const auto t1 = Clock::now();
     vcvdt.run(interrupter);
-    stats.secondsPasses = seconds(t1);
+    stats.secondsPasses = detail::secondsSince(t1);
     const auto t2 = Clock::now();
     if (shell.points && shell.triangles && shell.mesh) vcvdt.refine(*shell.mesh, transform, interrupter);
     vcvdt.writeBack(voxelSize, unreached);
-    stats.secondsFinish = seconds(t2);
+    stats.secondsFinish = detail::secondsSince(t2);
     if (statsOut) *statsOut = stats;
 }
 

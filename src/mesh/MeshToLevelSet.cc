@@ -1,7 +1,10 @@
-// Mesh → exact narrow-band level set (Chang, Cha, Ihm 2008). See MeshToLevelSet.h.
-//
-// This translation unit holds the heavy OpenVDB template work of the main road; keep it that way
-// (compile time on 2 cores).
+// SPDX-License-Identifier: Apache-2.0
+// Mesh → exact narrow-band level set (Chang, Cha, Ihm 2008): the exact band. See MeshToLevelSet.h.
+// This translation unit holds the heavy OpenVDB template work of the main road.
+#include "detail/ProgressCheck.h"
+#include "detail/PreparedTriangle.h"
+#include "detail/Timer.h"
+
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/mesh/MeshToLevelSet.h>
 #include <levelforge/core/MeshValidation.h>
@@ -36,21 +39,12 @@ using openvdb::Coord;
 using FloatLeaf = openvdb::FloatTree::LeafNodeType;
 using Vec3fLeaf = openvdb::Vec3fTree::LeafNodeType;
 using Int32Leaf = openvdb::Int32Tree::LeafNodeType;
-using Clock = std::chrono::steady_clock;
-
-inline double secondsSince(Clock::time_point t0)
-{
-    return std::chrono::duration<double>(Clock::now() - t0).count();
-}
+using detail::Clock;
+using detail::secondsSince;
+using detail::PreparedTri;
 
 constexpr uint32_t kNone = 0xffffffffu;
 
-/// A triangle copied next to the leaf that uses it (cell-space vertices, double precision).
-struct PreparedTri
-{
-    Vec3d a, b, c;
-    uint32_t id;
-};
 
 /// A row of cells (along z) at offsets (dx, dy) from the voxel's cell, with its minimum squared
 /// distance from the voxel centre (the paper's layer groups 0, 1/4, 1/2, ... generalised), and
@@ -375,28 +369,6 @@ void checkWidth(const char* name, float w)
 
 } // namespace meshtols_internal
 
-double resolveVoxelSize(const TriangleMesh& mesh, const MeshToLevelSetOptions& options)
-{
-    const double vs = options.voxelSize;
-    if (std::isnan(vs) || std::isinf(vs) || vs < 0.0) {
-        std::ostringstream os;
-        os << "voxel size must be a positive number (world units), got " << vs;
-        throw InvalidArgumentError(os.str());
-    }
-    if (vs > 0.0) return vs;
-    if (options.voxelCount <= 0)
-        throw InvalidArgumentError("give a positive voxel size or a positive voxel count (got voxel count " +
-                                   std::to_string(options.voxelCount) + ")");
-    const BBoxd b = mesh.bounds();
-    if (mesh.triangles.empty() || b.min()[0] > b.max()[0])
-        throw InvalidMeshError((mesh.source.empty() ? std::string("mesh") : mesh.source) + ": mesh has no triangles");
-    const double extent = b.extents()[b.maxExtent()];
-    if (!(extent > 0.0) || !std::isfinite(extent))
-        throw InvalidMeshError((mesh.source.empty() ? std::string("mesh") : mesh.source) +
-                               ": bounding box has zero or non-finite size; cannot derive a voxel size from a count");
-    return extent / double(options.voxelCount);
-}
-
 namespace {
 LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSetOptions& options,
                                   MeshToLevelSetStats* statsOut, bool wantClosest)
@@ -406,13 +378,16 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     MeshToLevelSetStats stats;
     auto* interrupter = options.interrupter;
 
-    checkWidth("exterior band width", options.exteriorWidth);
-    checkWidth("interior band width", options.interiorWidth);
     requireUsableMesh(mesh);
     const double h = resolveVoxelSize(mesh, options);
     stats.voxelSize = h;
+    // Band limits in voxels, held in float as they always were.
+    const float extWf = static_cast<float>(options.widthInVoxels(options.exteriorWidth, h));
+    const float intWf = static_cast<float>(options.widthInVoxels(options.interiorWidth, h));
+    checkWidth("exterior band width", extWf);
+    checkWidth("interior band width", intWf);
 
-    const double extW = options.exteriorWidth, intW = options.interiorWidth;
+    const double extW = extWf, intW = intWf;
     const double limit = std::max(extW, intW);
 
     // Cell space: cell ijk = [i, i+1)^3 holds voxel ijk, whose centre is at world ijk*h.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Microtriangle voxelization (Chang, Cha, Ihm 2008, §3.1, §3.3). See MicrotriangleVoxelizer.h.
 #include <levelforge/mesh/MicrotriangleVoxelizer.h>
 

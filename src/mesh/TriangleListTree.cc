@@ -1,4 +1,7 @@
+// SPDX-License-Identifier: Apache-2.0
 // Two-pass triangle lists in a VDB tree (Chang et al. §3.2). See TriangleListTree.h.
+#include "detail/Timer.h"
+
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/Progress.h>
 #include <levelforge/mesh/TriangleListTree.h>
@@ -58,10 +61,7 @@ TriangleListTree TriangleListTree::build(const std::vector<Vec3d>& cellPoints,
                                          openvdb::util::NullInterrupter* interrupter)
 {
     using namespace trianglelist_internal;
-    const auto t0 = std::chrono::steady_clock::now();
-    auto secondsSince = [](std::chrono::steady_clock::time_point t) {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-    };
+    const auto t0 = detail::Clock::now();
     std::atomic<bool> stop{false};
     const size_t nChunks = (use.size() + kChunk - 1) / kChunk;
     std::vector<Chunk> chunks(nChunks);
@@ -103,8 +103,8 @@ TriangleListTree TriangleListTree::build(const std::vector<Vec3d>& cellPoints,
         if (counters) counters->add(local.counters);
     }
     TreeT& tree = *result.mTree;
-    result.mSecondsVoxelize = secondsSince(t0);
-    const auto t1 = std::chrono::steady_clock::now();
+    result.mSecondsVoxelize = detail::secondsSince(t0);
+    const auto t1 = detail::Clock::now();
 
     // Number the cells in leaf order; prefix sums give each list's first slot.
     openvdb::tree::LeafManager<TreeT> leafs(tree);
@@ -165,7 +165,7 @@ TriangleListTree TriangleListTree::build(const std::vector<Vec3d>& cellPoints,
         for (size_t o = r.begin(); o != r.end(); ++o)
             std::sort(result.mIds.begin() + result.mBegin[o], result.mIds.begin() + result.mBegin[o + 1]);
     });
-    result.mSecondsLists = secondsSince(t1);
+    result.mSecondsLists = detail::secondsSince(t1);
     return result;
 }
 

@@ -1,6 +1,9 @@
+// SPDX-License-Identifier: Apache-2.0
 // Exact signed distance reference (BVH + brute force). See ExactReference.h.
 #include <levelforge/reference/ExactReference.h>
 #include <levelforge/core/TriangleDistance.h>
+
+#include "detail/Bvh.h"
 
 #include <openvdb/tree/LeafManager.h>
 
@@ -14,54 +17,31 @@
 namespace levelforge {
 
 ExactReference::ExactReference(const TriangleMesh& mesh)
-    : mMesh(mesh), mNormals(new PseudoNormals(mesh))
+    : mMesh(mesh), mNormals(new PseudoNormals(mesh)), mBvh(new detail::Bvh)
 {
     const size_t nt = mesh.triangles.size();
     std::vector<BBoxd> boxes(nt);
     std::vector<Vec3d> centroid(nt);
+    std::vector<uint32_t> ids;
     for (uint32_t t = 0; t < nt; ++t) {
         if (mNormals->isDegenerate(t)) continue;
         BBoxd b;
         for (int k = 0; k < 3; ++k) b.expand(mesh.points[mesh.triangles[t][k]]);
         boxes[t] = b;
         centroid[t] = b.getCenter();
-        mOrder.push_back(t);
+        ids.push_back(t);
     }
-    if (mOrder.empty()) return;
-    // Top-down median split on the longest axis of the centroid box; leaves of ≤ 4 triangles.
-    struct Job { uint32_t node, first, count; };
-    mNodes.push_back({});
-    std::vector<Job> stack{{0, 0, uint32_t(mOrder.size())}};
-    while (!stack.empty()) {
-        const Job j = stack.back();
-        stack.pop_back();
-        BBoxd box, cbox;
-        for (uint32_t i = j.first; i < j.first + j.count; ++i) {
-            box.expand(boxes[mOrder[i]]);
-            cbox.expand(centroid[mOrder[i]]);
-        }
-        Node& n = mNodes[j.node];
-        n.box = box;
-        n.first = j.first;
-        n.count = j.count;
-        n.left = n.right = 0;
-        if (j.count <= 4) continue;
-        const int axis = int(cbox.maxExtent());
-        const uint32_t mid = j.first + j.count / 2;
-        std::nth_element(mOrder.begin() + j.first, mOrder.begin() + mid, mOrder.begin() + j.first + j.count,
-                         [&](uint32_t a, uint32_t b) {
-                             return centroid[a][axis] < centroid[b][axis] ||
-                                    (centroid[a][axis] == centroid[b][axis] && a < b);
-                         });
-        const uint32_t left = uint32_t(mNodes.size());
-        mNodes.push_back({});
-        mNodes.push_back({});
-        mNodes[j.node].left = left;
-        mNodes[j.node].right = left + 1;
-        mNodes[j.node].count = 0;
-        stack.push_back({left, j.first, mid - j.first});
-        stack.push_back({left + 1, mid, j.first + j.count - mid});
-    }
+    // Top-down median split on the longest axis of the centroid box; leaves of <= 4 triangles.
+    mBvh->build(
+        std::move(ids), boxes, 4,
+        [&](const uint32_t* first, size_t count, const detail::Bvh::Node&) {
+            BBoxd cbox;
+            for (size_t i = 0; i < count; ++i) cbox.expand(centroid[first[i]]);
+            return int(cbox.maxExtent());
+        },
+        [&](uint32_t a, uint32_t b, int axis) {
+            return centroid[a][axis] < centroid[b][axis] || (centroid[a][axis] == centroid[b][axis] && a < b);
+        });
 }
 
 ExactReference::~ExactReference() = default;
@@ -97,34 +77,20 @@ struct Closest
 
 ExactReference::Result ExactReference::query(const Vec3d& p) const
 {
-    if (mNodes.empty()) return Result();
+    if (mBvh->empty()) return Result();
     reference_internal::Closest best(mMesh, p);
-    uint32_t stack[128];
-    int sp = 0;
-    stack[sp++] = 0;
-    while (sp > 0) {
-        const Node& n = mNodes[stack[--sp]];
-        // Strict: a box at exactly the best distance may hold a lower-id tie (same answer as bruteForce).
-        if (boxDistanceSqr(p, n.box.min(), n.box.max()) > best.d2) continue;
-        if (n.count > 0) {
-            for (uint32_t i = n.first; i < n.first + n.count; ++i) best.consider(mOrder[i]);
-            continue;
-        }
-        const Node& l = mNodes[n.left];
-        const Node& r = mNodes[n.right];
-        const double dl = boxDistanceSqr(p, l.box.min(), l.box.max());
-        const double dr = boxDistanceSqr(p, r.box.min(), r.box.max());
-        // Push the farther child first so the nearer one is visited first.
-        if (dl < dr) { stack[sp++] = n.right; stack[sp++] = n.left; }
-        else { stack[sp++] = n.left; stack[sp++] = n.right; }
-    }
+    // Visits boxes at exactly the best distance too: they may hold a lower-id tie (the same
+    // answer as bruteForce).
+    mBvh->nearest<true>(p, best.d2, [&](const uint32_t* ids, uint32_t n) {
+        for (uint32_t i = 0; i < n; ++i) best.consider(ids[i]);
+    });
     return best.result(*mNormals);
 }
 
 ExactReference::Result ExactReference::bruteForce(const Vec3d& p) const
 {
     reference_internal::Closest best(mMesh, p);
-    for (uint32_t t : mOrder) best.consider(t);
+    for (uint32_t t : mBvh->order()) best.consider(t);
     return best.result(*mNormals);
 }
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — procedural meshes. See MeshShapes.h.
 #include <levelforge/reference/MeshShapes.h>
 
@@ -349,6 +350,19 @@ double surfaceArea(const TriangleMesh& mesh)
         sum += (mesh.points[t[1]] - a).cross(mesh.points[t[2]] - a).length();
     }
     return 0.5 * sum;
+}
+
+// ------------------------------------------------------------------------- built-in names
+
+bool isBuiltinMeshName(const std::string& name) { return name.rfind("builtin:", 0) == 0; }
+
+TriangleMesh makeBuiltinMesh(const std::string& name)
+{
+    if (name == "builtin:torus-knot") return makeTorusKnot();
+    if (name == "builtin:sphere") return makeIcosphere(Vec3d(0.0), 1.0, 4);
+    if (name == "builtin:box") return makeBox(Vec3d(-1.0), Vec3d(1.0));
+    throw InvalidArgumentError("unknown built-in mesh '" + name +
+                               "' (builtin:torus-knot, builtin:sphere, builtin:box)");
 }
 
 } // namespace levelforge

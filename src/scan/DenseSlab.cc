@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Dense slabs and the CPU slab backend. See DenseSlab.h.
 #include <levelforge/scan/DenseSlab.h>
 #include <levelforge/core/TriangleDistance.h>

@@ -1,8 +1,13 @@
+// SPDX-License-Identifier: Apache-2.0
 // T4 scan conversion (Erleben & Dohlmann). See TetScanConversion.h.
+#include "detail/ProgressCheck.h"
+#include "detail/Timer.h"
+
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/mesh/MeshToLevelSet.h>
 #include <levelforge/core/Progress.h>
 #include <levelforge/scan/TetScanConversion.h>
+#include "scan/TetScanInternal.h"
 #include <levelforge/core/MeshValidation.h>
 
 #include <openvdb/tools/SignedFloodFill.h>
@@ -30,8 +35,8 @@ struct Point2
 constexpr int kMaxMergedTets = 24;
 constexpr int kMaxSlicePoints = kMaxMergedTets * CrossSection::kMaxVertices;
 
-using Clock = std::chrono::steady_clock;
-inline double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using detail::Clock;
+using detail::secondsSince;
 
 inline int floorDiv(int a, int b) { return (a >= 0) ? a / b : -((-a + b - 1) / b); }
 
@@ -149,12 +154,6 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
     using FloatLeaf = openvdb::FloatTree::LeafNodeType;
     openvdb::initialize();
     const TetScanOptions& o = mOptions;
-    for (float w : {o.exteriorWidth, o.interiorWidth})
-        if (!std::isfinite(w) || w <= 0.0f) {
-            std::ostringstream os;
-            os << "band width must be a positive number of voxels, got " << w;
-            throw InvalidArgumentError(os.str());
-        }
     if (o.slabDepth < 8 || o.slabDepth % 8 || o.slabWidth < 8 || o.slabWidth % 8 || o.slabDepth > 512 ||
         o.slabWidth > 512) {
         std::ostringstream os;
@@ -163,11 +162,17 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
         throw InvalidArgumentError(os.str());
     }
     requireUsableMesh(mMesh);
-    MeshToLevelSetOptions vsOpt;
-    vsOpt.voxelSize = o.voxelSize;
-    vsOpt.voxelCount = o.voxelCount;
-    const double h = resolveVoxelSize(mMesh, vsOpt);
-    const double extW = o.exteriorWidth, intW = o.interiorWidth;
+    const double h = resolveVoxelSize(mMesh, o);
+    // Band limits in voxels, held in float as they always were.
+    const float extWf = static_cast<float>(o.widthInVoxels(o.exteriorWidth, h));
+    const float intWf = static_cast<float>(o.widthInVoxels(o.interiorWidth, h));
+    for (float w : {extWf, intWf})
+        if (!std::isfinite(w) || w <= 0.0f) {
+            std::ostringstream os;
+            os << "band width must be a positive number of voxels, got " << w;
+            throw InvalidArgumentError(os.str());
+        }
+    const double extW = extWf, intW = intWf;
     const double eps = std::max(extW, intW); // voxels
     {
         const BBoxd b = mMesh.bounds();

@@ -1,6 +1,8 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tetrahedral shells (Erleben & Dohlmann §3.3–3.5). See TetrahedralShell.h.
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/scan/TetrahedralShell.h>
+#include "scan/TetrahedralShellInternal.h"
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>

@@ -1,9 +1,12 @@
-// levelforge — feature voxels, classification, signing and chamfer distance transforms.
-// See include/levelforge/volume/ChamferDistanceTransform.h.
+// SPDX-License-Identifier: Apache-2.0
+// Dense chamfer distance transforms; see include/levelforge/volume/ChamferDistanceTransform.h.
 #include <levelforge/volume/ChamferDistanceTransform.h>
 
+#include "detail/Lanes.h"
+#include "volume/ChamferDistanceTransformInternal.h"
+#include "volume/DenseVolumeHelpers.h"
+
 #include <levelforge/core/Exceptions.h>
-#include <levelforge/volume/VectorDistanceTransform.h> // runRowWavefront
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -12,69 +15,14 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
-#include <sstream>
 
 namespace levelforge {
 
 namespace {
 
+using volume_internal::like;
+
 constexpr float kInf = std::numeric_limits<float>::infinity();
-
-
-template<typename A, typename B>
-void requireSameDims(const DenseVolume<A>& a, const DenseVolume<B>& b, const char* what)
-{
-    if (a.dims != b.dims) {
-        std::ostringstream ss;
-        ss << what << ": volume dims differ (" << a.dims.x() << " x " << a.dims.y() << " x " << a.dims.z()
-           << " vs " << b.dims.x() << " x " << b.dims.y() << " x " << b.dims.z() << ")";
-        throw InvalidArgumentError(ss.str());
-    }
-}
-
-template<typename Out, typename In>
-DenseVolume<Out> like(const DenseVolume<In>& v)
-{
-    DenseVolume<Out> o;
-    o.dims = v.dims;
-    o.spacing = v.spacing;
-    o.origin = v.origin;
-    o.data.resize(v.data.size());
-    return o;
-}
-
-/// Calls f(i, j, k) for every voxel, parallel over slices.
-template<typename F>
-void forEachVoxel(const openvdb::Coord& dims, const F& f)
-{
-    tbb::parallel_for(tbb::blocked_range<int>(0, dims.z()), [&](const tbb::blocked_range<int>& r) {
-        for (int k = r.begin(); k != r.end(); ++k)
-            for (int j = 0; j < dims.y(); ++j)
-                for (int i = 0; i < dims.x(); ++i) f(i, j, k);
-    });
-}
-
-/// Counts inside voxels among the 26 neighbours of (i,j,k) (beyond the volume = outside).
-inline int insideNeighbours(const MaskVolume& in, int i, int j, int k)
-{
-    const int nx = in.dims.x(), ny = in.dims.y(), nz = in.dims.z();
-    int n = 0;
-    for (int dz = -1; dz <= 1; ++dz) {
-        const int z = k + dz;
-        if (z < 0 || z >= nz) continue;
-        for (int dy = -1; dy <= 1; ++dy) {
-            const int y = j + dy;
-            if (y < 0 || y >= ny) continue;
-            const uint8_t* row = in.data.data() + in.index(0, y, z);
-            for (int dx = -1; dx <= 1; ++dx) {
-                const int x = i + dx;
-                if (x < 0 || x >= nx || (dx == 0 && dy == 0 && dz == 0)) continue;
-                n += row[x] ? 1 : 0;
-            }
-        }
-    }
-    return n;
-}
 
 /// One direction's half of a chamfer mask.
 struct HalfMask
@@ -127,68 +75,6 @@ void chamferSpan(float* D, const openvdb::Coord& dims, const HalfMask& h, int z,
 }
 
 } // namespace
-
-// ------------------------------------------------------------------ feature voxels
-
-MaskVolume insideMask(const ScalarVolume& field, float iso)
-{
-    requireValidVolume(field, "insideMask");
-    if (std::isnan(iso)) throw InvalidArgumentError("insideMask: iso value is NaN");
-    MaskVolume m = like<uint8_t>(field);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, m.data.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) m.data[i] = field.data[i] >= iso ? 1 : 0;
-    });
-    return m;
-}
-
-MaskVolume transverseFeatures(const MaskVolume& inside)
-{
-    requireValidVolume(inside, "transverseFeatures");
-    MaskVolume f = like<uint8_t>(inside);
-    forEachVoxel(inside.dims, [&](int i, int j, int k) {
-        const size_t idx = inside.index(i, j, k);
-        uint8_t v = 0;
-        if (inside.data[idx]) {
-            const int n = insideNeighbours(inside, i, j, k);
-            v = (n > 0 && n < 26) ? 1 : 0;
-        }
-        f.data[idx] = v;
-    });
-    return f;
-}
-
-DenseVolume<int8_t> classification(const MaskVolume& inside, const MaskVolume& features)
-{
-    requireValidVolume(inside, "classification");
-    requireValidVolume(features, "classification");
-    requireSameDims(inside, features, "classification");
-    DenseVolume<int8_t> c = like<int8_t>(inside);
-    forEachVoxel(inside.dims, [&](int i, int j, int k) {
-        const size_t idx = inside.index(i, j, k);
-        int8_t v = 1;
-        if (features.data[idx]) v = 0;
-        else if (insideNeighbours(inside, i, j, k) == 26) v = -1;
-        c.data[idx] = v;
-    });
-    return c;
-}
-
-ScalarVolume applySign(const ScalarVolume& unsignedDistance, const DenseVolume<int8_t>& sign)
-{
-    requireValidVolume(unsignedDistance, "applySign");
-    requireValidVolume(sign, "applySign");
-    requireSameDims(unsignedDistance, sign, "applySign");
-    ScalarVolume out = like<float>(unsignedDistance);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, out.data.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            const int8_t s = sign.data[i];
-            out.data[i] = s == 0 ? 0.0f : (s < 0 ? -unsignedDistance.data[i] : unsignedDistance.data[i]);
-        }
-    });
-    return out;
-}
-
-// ------------------------------------------------------------------ chamfer
 
 const char* chamferMetricName(ChamferMetric metric)
 {
@@ -255,8 +141,8 @@ ScalarVolume chamferDistanceTransform(const MaskVolume& features, ChamferMetric 
     const HalfMask fwd = halfMask(metric, features.spacing, dims, true);
     const HalfMask bwd = halfMask(metric, features.spacing, dims, false);
     const int nx = dims.x(), ny = dims.y(), nz = dims.z();
-    const int lanes = vector_transform_internal::laneCountFor(nx, ny, options.threads);
-    const int chunks = vector_transform_internal::wavefrontChunks(nx, lanes);
+    const int lanes = detail::laneCountFor(nx, ny, options.threads);
+    const int chunks = detail::wavefrontChunks(nx, lanes);
     float* d = D.data.data();
     auto work = [&](int s, int r, int c) {
         const bool forward = s < nz;
@@ -269,7 +155,7 @@ ScalarVolume chamferDistanceTransform(const MaskVolume& features, ChamferMetric 
     if (interrupter) interrupter->start("chamfer distance transform");
     auto begin = [&](int s) { return !interrupter || !interrupter->wasInterrupted(int((50.0 * s) / nz)); };
     // lookahead 1 chunk: rows above read x + radius (radius <= 2 <= chunk width).
-    if (!vector_transform_internal::runRowWavefront(2 * nz, ny, chunks, 1, lanes, work, begin)) {
+    if (!detail::runRowWavefront(2 * nz, ny, chunks, 1, lanes, work, begin)) {
         if (interrupter) interrupter->end();
         throw InterruptedError("chamfer distance transform interrupted");
     }

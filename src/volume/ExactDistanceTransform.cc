@@ -1,8 +1,11 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — exact dense EDT (Felzenszwalb–Huttenlocher), brute force, and accuracy report.
 // See include/levelforge/volume/ExactDistanceTransform.h.
 #include <levelforge/volume/ExactDistanceTransform.h>
 
 #include <levelforge/core/Exceptions.h>
+
+#include "detail/LowerEnvelope.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -22,49 +25,35 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr double kInfD = std::numeric_limits<double>::infinity();
 
 
-/// Scratch for one 1-D lower envelope of n parabolas.
+/// Scratch for one 1-D lower envelope of n parabolas (detail::LowerEnvelope with the paper's
+/// double-precision breakpoints at integer sites weighted by the squared spacing).
 struct Envelope
 {
-    std::vector<double> f, fv, z;
-    std::vector<int> v;
-    explicit Envelope(int n) : f(size_t(n)), fv(size_t(n)), z(size_t(n) + 1), v(size_t(n)) {}
+    std::vector<double> f;
+    detail::LowerEnvelope<double, double> env{-kInfD, kInfD};
+    explicit Envelope(int n) : f(size_t(n)) { env.reset(size_t(n)); }
 
     /// out[p] = min_q s2 (p - q)^2 + f[q] for the n values in `f` (+inf = no sample).
     /// Returns false (out untouched) when every f is +inf.
     template<typename Out>
     bool run(int n, double s2, Out out)
     {
-        int k = -1;
+        env.reset(size_t(n));
         for (int q = 0; q < n; ++q) {
             const double fq = f[size_t(q)];
             if (!(fq < kInfD)) continue;
-            if (k < 0) {
-                k = 0;
-                v[0] = q;
-                fv[0] = fq;
-                z[0] = -kInfD;
-                z[1] = kInfD;
-                continue;
-            }
             const double hq = fq + s2 * double(q) * double(q);
-            double s = (hq - (fv[size_t(k)] + s2 * double(v[size_t(k)]) * v[size_t(k)])) / (2.0 * s2 * (q - v[size_t(k)]));
-            while (s <= z[size_t(k)]) {
-                --k;
-                s = (hq - (fv[size_t(k)] + s2 * double(v[size_t(k)]) * v[size_t(k)])) / (2.0 * s2 * (q - v[size_t(k)]));
-            }
-            ++k;
-            v[size_t(k)] = q;
-            fv[size_t(k)] = fq;
-            z[size_t(k)] = s;
-            z[size_t(k) + 1] = kInfD;
+            env.add(
+                q, fq, [&](int a, double fa) { return (hq - (fa + s2 * double(a) * a)) / (2.0 * s2 * (q - a)); },
+                [](double s, double z) { return s <= z; });
         }
-        if (k < 0) return false;
-        int j = 0;
-        for (int p = 0; p < n; ++p) {
-            while (z[size_t(j) + 1] < double(p)) ++j;
-            const double d = double(p - v[size_t(j)]);
-            out(p, s2 * d * d + fv[size_t(j)]);
-        }
+        if (env.empty()) return false;
+        env.evaluate(
+            n, [](int p) { return double(p); }, [](double z, double t) { return z < t; },
+            [&](int p, double, int a, double fa) {
+                const double d = double(p - a);
+                out(p, s2 * d * d + fa);
+            });
         return true;
     }
 };

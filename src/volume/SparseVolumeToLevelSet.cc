@@ -1,5 +1,9 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — scalar VDB grid to level set on sparse topology (see SparseVolumeToLevelSet.h).
+#include "detail/ProgressCheck.h"
 #include <levelforge/volume/SparseVolumeToLevelSet.h>
+
+#include "detail/Timer.h"
 
 #include "detail/IsoSurfaceCells.h"
 
@@ -29,8 +33,8 @@ namespace levelforge {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using detail::Clock;
+using detail::secondsSince;
 
 std::string gridLabel(const openvdb::FloatGrid& g)
 {
@@ -138,13 +142,18 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     if (o.method != VolumeDistanceMethod::VCVDT8 && o.method != VolumeDistanceMethod::Exact)
         throw InvalidArgumentError(std::string("the sparse conversion supports vcvdt8 and exact, not ") +
                                    volumeDistanceMethodName(o.method));
-    for (double w : {o.exteriorWidth, o.interiorWidth})
+    if (o.voxelSize != 0.0 || o.voxelCount != 0)
+        throw InvalidArgumentError("the volume's spacing sets the voxel size: leave voxelSize and voxelCount at 0");
+    const double h = uniformVoxelSize(field);
+    // Band widths in voxels (GridSpec units).
+    const double exteriorWidth = o.widthInVoxels(o.exteriorWidth, h);
+    const double interiorWidth = o.widthInVoxels(o.interiorWidth, h);
+    for (double w : {exteriorWidth, interiorWidth})
         if (!(w > 0.0) || !std::isfinite(w) || w > 1e5) {
             std::ostringstream os;
             os << "band width must be a positive number of voxels (at most 1e5), got " << w;
             throw InvalidArgumentError(os.str());
         }
-    const double h = uniformVoxelSize(field);
     requireFinite(field);
     auto* interrupter = o.interrupter;
     if (interrupter) interrupter->start("volume to level set (sparse)");
@@ -273,10 +282,10 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     // ---- 2. exact band with closest points; signs from the samples
     t0 = Clock::now();
     const bool widen = o.method == VolumeDistanceMethod::VCVDT8;
-    const double wantMax = std::max(o.exteriorWidth, o.fillInterior ? 3.0 : o.interiorWidth);
+    const double wantMax = std::max(exteriorWidth, o.fillInterior ? 3.0 : interiorWidth);
     const double exact = widen ? std::min(1.5, wantMax) : wantMax;
-    const double exactExt = std::min(exact, o.exteriorWidth);
-    const double exactInt = o.fillInterior ? exact : std::min(exact, o.interiorWidth);
+    const double exactExt = std::min(exact, exteriorWidth);
+    const double exactInt = o.fillInterior ? exact : std::min(exact, interiorWidth);
     stats.exactBand = exact;
     MeshToLevelSetOptions mo;
     mo.voxelSize = h;
@@ -308,15 +317,15 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
 
     // ---- 3. widen by the sparse VCVDT (closest points and triangles of the exact band)
     // (fill interior: the inside beyond the exact band comes from the sparse VCVDT with either method)
-    if (o.fillInterior || (widen && (o.exteriorWidth > exactExt || o.interiorWidth > exactInt))) {
+    if (o.fillInterior || (widen && (exteriorWidth > exactExt || interiorWidth > exactInt))) {
         t0 = Clock::now();
         ExpandLevelSetOptions eo;
         eo.method = ExpansionMethod::Vector;
         eo.closestPoints = &band.closestPoints->tree();
         eo.closestTriangles = &band.closestTriangles->tree();
         eo.mesh = &soup;
-        eo.exteriorWidth = o.exteriorWidth;
-        eo.interiorWidth = o.fillInterior ? exact : o.interiorWidth;
+        eo.exteriorWidth = exteriorWidth;
+        eo.interiorWidth = o.fillInterior ? exact : interiorWidth;
         eo.fillInterior = o.fillInterior;
         eo.inputExteriorWidth = exactExt;
         eo.inputInteriorWidth = exactInt;
@@ -326,9 +335,9 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
         if (interrupter) interrupter->start("volume to level set (sparse): trim");
         // expandLevelSet keeps a coverage margin beyond the widths; the volume path's band is
         // -interior < φ < exterior exactly, as on the dense path.
-        const double bgW = o.fillInterior ? std::max(double(grid->background()), o.exteriorWidth * h)
-                                          : std::max(o.exteriorWidth, o.interiorWidth) * h;
-        const float ext = float(o.exteriorWidth * h), in = float(o.interiorWidth * h);
+        const double bgW = o.fillInterior ? std::max(double(grid->background()), exteriorWidth * h)
+                                          : std::max(exteriorWidth, interiorWidth) * h;
+        const float ext = float(exteriorWidth * h), in = float(interiorWidth * h);
         auto trimmed = keptVoxels(grid->tree(), float(bgW), [&](const Coord&, float x) {
             return (x < ext && (o.fillInterior || x > -in)) ? x : nan;
         });

@@ -1,7 +1,9 @@
-// levelforge — sub-voxel shell of closest-point vectors (see SubvoxelShell.h).
+// SPDX-License-Identifier: Apache-2.0
+// Sub-voxel shell of closest-point vectors (see include/levelforge/volume/SubvoxelShell.h).
 #include <levelforge/volume/SubvoxelShell.h>
 
 #include "detail/IsoSurfaceCells.h"
+#include "detail/Timer.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/TriangleDistance.h>
@@ -12,7 +14,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -24,7 +25,7 @@ namespace {
 using iso_surface_internal::Tri;
 using iso_surface_internal::cellTriangles;
 
-using Clock = std::chrono::steady_clock;
+using detail::Clock;
 
 void checkVolume(const ScalarVolume& f)
 {
@@ -305,7 +306,7 @@ VectorVolume subvoxelShell(const ScalarVolume& field, const SubvoxelShellOptions
     if (stop) throw InterruptedError("interrupted while computing the sub-voxel shell");
     stats.shellVoxels = shellCount;
     stats.insideVoxels = insideCount;
-    stats.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    stats.seconds = detail::secondsSince(t0);
     if (statsOut) *statsOut = stats;
     return out;
 }

@@ -1,11 +1,16 @@
-// levelforge — scalar volume to a signed distance level set (see VolumeToLevelSet.h).
+// SPDX-License-Identifier: Apache-2.0
+// Scalar volume to a signed distance level set (see include/levelforge/volume/VolumeToLevelSet.h).
 #include <levelforge/volume/VolumeToLevelSet.h>
 
-#include <levelforge/volume/ChamferDistanceTransform.h>
+#include "detail/NumberFormat.h"
+#include "detail/Timer.h"
+
 #include <levelforge/core/Exceptions.h>
-#include <levelforge/volume/ExactDistanceTransform.h>
 #include <levelforge/reference/ExactReference.h>
+#include <levelforge/volume/ChamferDistanceTransform.h>
+#include <levelforge/volume/ExactDistanceTransform.h>
 #include <levelforge/volume/VectorDistanceTransform.h>
+#include <levelforge/volume/VolumeFeatures.h>
 
 #include <openvdb/tools/Prune.h>
 
@@ -13,7 +18,6 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -21,8 +25,8 @@
 namespace levelforge {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+using detail::Clock;
+using detail::secondsSince;
 
 struct MethodName { VolumeDistanceMethod m; const char* name; };
 constexpr MethodName kNames[] = {
@@ -61,6 +65,10 @@ ChamferMetric chamferMetric(VolumeDistanceMethod m)
 
 void checkOptions(const ScalarVolume& f, const VolumeToLevelSetOptions& o)
 {
+    if (o.voxelSize != 0.0 || o.voxelCount != 0)
+        throw InvalidArgumentError("volume to level set: the volume's spacing sets the voxel size; voxelSize and "
+                                   "voxelCount must be 0, got voxelSize " + detail::formatDouble(o.voxelSize) +
+                                   ", voxelCount " + std::to_string(o.voxelCount));
     if (f.empty()) throw InvalidArgumentError("volume to level set: the volume is empty");
     requireValidVolume(f, "volume to level set");
     if (o.maxVoxels && f.voxelCount() > o.maxVoxels)
@@ -76,10 +84,11 @@ void checkOptions(const ScalarVolume& f, const VolumeToLevelSetOptions& o)
             throw InvalidArgumentError(os.str());
         }
     }
-    auto width = [](double w, const char* name) {
+    auto width = [&o](double w, const char* name) {
         if (!(w > 0.0) || !std::isfinite(w)) {
             std::ostringstream os;
-            os << "volume to level set: " << name << " must be finite and > 0 (voxels), got " << w;
+            os << "volume to level set: " << name << " must be finite and > 0 ("
+               << (o.units == WidthUnits::World ? "world units" : "voxels") << "), got " << w;
             throw InvalidArgumentError(os.str());
         }
     };
@@ -129,7 +138,7 @@ ScalarVolume volumeSignedDistance(const ScalarVolume& field, const VolumeToLevel
             if (surface.triangles.empty())
                 throw InvalidArgumentError("volume to level set: no surface at iso-value " + std::to_string(o.iso));
             stats.shell.triangles = surface.triangles.size();
-            stats.secondsClassify = since(t0);
+            stats.secondsClassify = secondsSince(t0);
             t0 = Clock::now();
             const ExactReference ref(surface);
             result = ScalarVolume(field.dims, 0.0f, field.spacing, field.origin);
@@ -142,12 +151,12 @@ ScalarVolume volumeSignedDistance(const ScalarVolume& field, const VolumeToLevel
                             result(i, j, k) = float(inside(i, j, k) ? -d : d);
                         }
             });
-            stats.secondsTransform = since(t0);
+            stats.secondsTransform = secondsSince(t0);
         } else {
             VectorVolume v = subvoxelShell(field, so, &stats.shell);
             if (stats.shell.shellVoxels == 0)
                 throw InvalidArgumentError("volume to level set: no surface at iso-value " + std::to_string(o.iso));
-            stats.secondsClassify = since(t0);
+            stats.secondsClassify = secondsSince(t0);
             t0 = Clock::now();
             VectorTransformOptions vo;
             vo.method = vectorMethod(o.method);
@@ -156,7 +165,7 @@ ScalarVolume volumeSignedDistance(const ScalarVolume& field, const VolumeToLevel
             result = vectorLength(v);
             for (size_t i = 0; i < result.data.size(); ++i)
                 if (inside.data[i]) result.data[i] = -result.data[i];
-            stats.secondsTransform = since(t0);
+            stats.secondsTransform = secondsSince(t0);
         }
     } else {
         MaskVolume inside = insideFlags(field, so);
@@ -165,7 +174,7 @@ ScalarVolume volumeSignedDistance(const ScalarVolume& field, const VolumeToLevel
         if (stats.featureVoxels == 0)
             throw InvalidArgumentError("volume to level set: no feature voxels at iso-value " + std::to_string(o.iso));
         const DenseVolume<int8_t> sign = classification(inside, features);
-        stats.secondsClassify = since(t0);
+        stats.secondsClassify = secondsSince(t0);
         t0 = Clock::now();
         ScalarVolume unsignedField;
         if (o.method == VolumeDistanceMethod::Exact) {
@@ -183,7 +192,7 @@ ScalarVolume volumeSignedDistance(const ScalarVolume& field, const VolumeToLevel
             unsignedField = vectorDistanceTransform(features, vo); // no 16-byte vector volume
         }
         result = applySign(unsignedField, sign);
-        stats.secondsTransform = since(t0);
+        stats.secondsTransform = secondsSince(t0);
     }
     if (statsOut) *statsOut = stats;
     return result;
@@ -235,9 +244,11 @@ openvdb::FloatGrid::Ptr volumeToLevelSet(const ScalarVolume& field, const Volume
     const ScalarVolume d = volumeSignedDistance(field, o, &stats);
     const auto t0 = Clock::now();
     const double hmin = std::min({field.spacing[0], field.spacing[1], field.spacing[2]});
-    auto grid = denseToLevelSet(d, o.exteriorWidth * hmin, o.interiorWidth * hmin, o.fillInterior, o.gridName);
+    // widths in voxels of the smallest spacing, to world units
+    auto grid = denseToLevelSet(d, o.widthInVoxels(o.exteriorWidth, hmin) * hmin,
+                                o.widthInVoxels(o.interiorWidth, hmin) * hmin, o.fillInterior, o.gridName);
     stats.activeVoxels = grid->activeVoxelCount();
-    stats.secondsBuild = since(t0);
+    stats.secondsBuild = secondsSince(t0);
     if (statsOut) *statsOut = stats;
     return grid;
 }

@@ -1,8 +1,11 @@
+// SPDX-License-Identifier: Apache-2.0
 // AdaptiveDistanceField (Yin, Liu, Wu 2011 on the VDB tile hierarchy): type-1 samples exact,
 // reconstruction error per level within the stated bound, sign everywhere on closed meshes,
 // continuity across level changes, .vdb round trip, level-set conversion, CSG against two
 // analytic spheres, refinement mode, determinism across thread counts, bad input.
 #include "TestUtil.h"
+
+#include "adf/AdfLeafPass.h" // adf_internal::setAvx2LeafPassEnabled (white-box)
 
 #include <levelforge/adf/AdaptiveDistanceField.h>
 #include <levelforge/reference/ExactReference.h>

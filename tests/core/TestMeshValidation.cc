@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for MeshValidation.h: every count on small meshes built by hand, the fatal problems,
 // the broken meshes of ../shared/data (skipped when absent), thread-count independence and speed.
 #include "TestUtil.h"

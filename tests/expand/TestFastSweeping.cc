@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // expandLevelSet (fast sweeping on sparse topology): analytic planes and spheres, the exact
 // reference (first-order error bound, coverage, signs), |∇φ| ≈ 1, frozen band, thread-count
 // determinism, the convergence report, domains (fill interior, bounding box, world units) and
@@ -7,6 +8,7 @@
 #include <levelforge/reference/ExactReference.h>
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/expand/ExpandLevelSet.h>
+#include "expand/FastSweeping.h" // dilationPattern (white-box)
 #include <levelforge/io/MeshIO.h>
 #include <levelforge/reference/MeshShapes.h>
 #include <levelforge/mesh/MeshToLevelSet.h>

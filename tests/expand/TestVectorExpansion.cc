@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Vector expansion (sparse 8-pass VCVDT over VDB leaves, VectorExpansion.h): exact closest-point
 // shells from meshToLevelSetWithClosestPoints, accuracy against the exact reference (mean and
 // max error, signs, coverage), never underestimating, frozen band, estimated shells, thread-count
@@ -9,7 +10,7 @@
 #include <levelforge/io/MeshIO.h>
 #include <levelforge/reference/MeshShapes.h>
 #include <levelforge/mesh/MeshToLevelSet.h>
-#include <levelforge/expand/VectorExpansion.h>
+#include "expand/VectorExpansion.h"
 
 #include <tbb/global_control.h>
 

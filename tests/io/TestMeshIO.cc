@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for MeshIO.h: round trips of every written format, the real meshes of ../shared/data
 // (skipped when absent), polygon triangulation, and every documented failure with its message.
 #include "TestUtil.h"

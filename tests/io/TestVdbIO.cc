@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for VdbIO.h: atomic writes, reading with clear errors, level-set metadata.
 #include "TestUtil.h"
 

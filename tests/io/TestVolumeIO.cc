@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for VolumeIO.h: NIfTI-1 / INRIMAGE-4 / VolPack .den / raw / .vdb readers, the NIfTI and
 // INR writers, and the typed errors. Headers of other datatypes and byte orders are written byte
 // by byte here, so the readers are checked against files built independently of the writers.

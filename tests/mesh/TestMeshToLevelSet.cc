@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // meshToLevelSet: exact narrow band against ground truth (analytic shapes, the brute-force/BVH
 // reference), every band mode in a loop, determinism, level-set conventions and bad input.
 #include "TestUtil.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Microtriangle voxelization must find every cell a triangle overlaps (Chang et al. §3.1).
 #include "TestUtil.h"
 

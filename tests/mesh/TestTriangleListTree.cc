@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Two-pass triangle lists (Chang et al. §3.2): every list holds exactly the triangles the
 // voxelizer assigns to that cell, sorted; identical for any thread count.
 #include "TestUtil.h"

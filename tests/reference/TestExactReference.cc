@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The exact reference itself: BVH against brute force; sign and pseudonormals on simple shapes.
 #include "TestUtil.h"
 

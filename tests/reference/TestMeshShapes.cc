@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for MeshShapes.h: every shape is closed, outward (positive signed volume), has the
 // expected topology, and matches the analytic volume and area; the torus knot does not touch
 // itself; random soups are deterministic and respect their bounds.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for TetScanConversion.h / DenseSlab.h: exactness against ExactReference and the Chang
 // path, coverage per shell method, the three leaking configurations of Erleben & Dohlmann §2,
 // open meshes, thread-count and slab-size independence.

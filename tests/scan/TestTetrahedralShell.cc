@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for TetrahedralShell.h: the small convex hull, the thin-shell root system (Eq. 6-11),
 // the OBB shell (contains the whole eps-neighbourhood of its face) and the tetrahedron slicer
 // of TetScanConversion.h (cases A, B, C of §3.1).
@@ -8,6 +9,8 @@
 #include <levelforge/core/PseudoNormals.h>
 #include <levelforge/scan/TetScanConversion.h>
 #include <levelforge/scan/TetrahedralShell.h>
+#include "scan/TetrahedralShellInternal.h"
+#include "scan/TetScanInternal.h"
 #include <levelforge/core/TriangleDistance.h>
 
 #include <cmath>

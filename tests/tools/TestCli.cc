@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // End-to-end tests of the `levelforge` executable: real processes, real files.
 #include "TestUtil.h"
 
@@ -170,6 +171,33 @@ TEST(Cli, MeshToSdfOptions)
     const CliRun noGrid = runLevelforge(dir, {"info", out, "--grid", "nope"});
     EXPECT_EQ(noGrid.code, 1);
     EXPECT_EQ(countLines(noGrid.err, "levelforge: error:"), 1) << noGrid.err;
+}
+
+TEST(Cli, MeshToSdfWorldUnitBands)
+{
+    // --world-units reads the bands in world units: 0.15 and 0.1 at voxel size 0.05 are the
+    // 3- and 2-voxel bands, voxel for voxel.
+    const fs::path dir = scratchDir("cli_world_units");
+    const std::string mesh = writeSphere(dir);
+    const std::string voxels = (dir / "voxels.vdb").string(), world = (dir / "world.vdb").string();
+    const CliRun a = runLevelforge(dir, {"mesh-to-sdf", mesh, voxels, "--voxel-size", "0.05", "--exterior-band",
+                                         "3", "--interior-band", "2", "--quiet"});
+    const CliRun b = runLevelforge(dir, {"mesh-to-sdf", mesh, world, "--voxel-size", "0.05", "--exterior-band",
+                                         "0.15", "--interior-band", "0.1", "--world-units", "--quiet"});
+    ASSERT_EQ(a.code, 0) << a.err;
+    ASSERT_EQ(b.code, 0) << b.err;
+    auto ga = readSingleLevelSet(voxels), gb = readSingleLevelSet(world);
+    ASSERT_TRUE(ga && gb);
+    EXPECT_FLOAT_EQ(gb->metaValue<float>("levelforge:exterior_band_voxels"), 3.0f);
+    EXPECT_FLOAT_EQ(gb->metaValue<float>("levelforge:interior_band_voxels"), 2.0f);
+    EXPECT_EQ(ga->activeVoxelCount(), gb->activeVoxelCount());
+    auto acc = gb->getConstAccessor();
+    uint64_t differ = 0;
+    for (auto it = ga->cbeginValueOn(); it; ++it) {
+        float v = 0.0f;
+        if (!acc.probeValue(it.getCoord(), v) || v != *it) ++differ;
+    }
+    EXPECT_EQ(differ, 0u);
 }
 
 TEST(Cli, BuiltinMesh)

@@ -1,11 +1,15 @@
-// Tests for ChamferDistanceTransform.h: feature voxels (Eq. 2, 3, 5, 6) on hand-checked cases,
-// every chamfer metric against Dijkstra on its own weighted neighbourhood graph (isotropic and
-// anisotropic), city-block against the analytic L1 metric, determinism, bad inputs.
+// SPDX-License-Identifier: Apache-2.0
+// Tests for ChamferDistanceTransform.h and VolumeFeatures.h: feature voxels (Eq. 2, 3, 5, 6) on
+// hand-checked cases, every chamfer metric against Dijkstra on its own weighted neighbourhood
+// graph (isotropic and anisotropic), city-block against the analytic L1 metric, determinism, bad
+// inputs.
 #include <levelforge/volume/ChamferDistanceTransform.h>
 
 #include <levelforge/core/Exceptions.h>
+#include <levelforge/volume/VolumeFeatures.h>
 
 #include "TestUtil.h"
+#include "volume/ChamferDistanceTransformInternal.h" // neighbourhood(), stepWeight()
 
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for ExactDistanceTransform.h: the linear-time EDT against brute force (isotropic and
 // anisotropic), analytic values, the comparison columns, the report, bad inputs, interruption.
 #include <levelforge/volume/ExactDistanceTransform.h>

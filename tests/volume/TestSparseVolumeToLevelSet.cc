@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // sparseVolumeToLevelSet: against the dense exact sub-voxel path (same interpolated surface),
 // against analytic spheres, on a grid whose dense box could never be allocated, with a translated
 // transform, asymmetric widths, fill interior, and bad inputs.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Sub-voxel shell (SubvoxelShell.h): closest points on the tetrahedral interpolation of analytic
 // fields (sphere: < 0.05 voxel from the analytic distance; plane: exact), brute-force check of
 // the window search, anisotropic spacing, the surface triangles, bad input.

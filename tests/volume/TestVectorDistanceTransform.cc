@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tests for VectorDistanceTransform.h against the exact EDT (ExactDistanceTransform.h, itself
 // tested against brute force) and analytic distances: single seeds (binary and fractional), the
 // paper's error wake (§3.2), the 80^3 sphere of Tables 5–6, sub-voxel planar shells, anisotropic
@@ -8,6 +9,9 @@
 #include <levelforge/volume/ChamferDistanceTransform.h>
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/volume/ExactDistanceTransform.h>
+#include <levelforge/volume/VolumeFeatures.h>
+
+#include "volume/VectorDistanceTransformInternal.h" // pass tables, AVX2 switch
 
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // volumeToLevelSet / volumeSignedDistance: every method in a loop against the exact field
 // (binary: exact EDT; sub-voxel: analytic sphere), signs, band, anisotropic transforms, bad
 // options, and the volume-to-sdf / dt-report CLI.

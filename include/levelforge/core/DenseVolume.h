@@ -1,13 +1,15 @@
-// levelforge — a dense scalar volume with anisotropic voxel spacing.
-//
-// The common currency of the volume road (Satherley–Jones): readers (VolumeIO.h) produce it,
-// the dense distance transforms (ChamferDistanceTransform.h, VectorDistanceTransform.h,
-// ExactDistanceTransform.h) consume and produce it, and volumeToLevelSet()
-// (VolumeToLevelSet.h) turns it into a sparse FloatGrid.
-//
-// Layout: x fastest, then y, then z (index = (k*ny + j)*nx + i). Sample (i,j,k) sits at the
-// world position origin + (i*sx, j*sy, k*sz): voxel centres, the convention of OpenVDB's
-// cell-centred index space with a scale transform (and of NIfTI/INR voxel coordinates).
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief A dense scalar volume with anisotropic voxel spacing.
+///
+/// The common currency of the volume road (Satherley–Jones): readers (VolumeIO.h) produce it,
+/// the dense distance transforms (ChamferDistanceTransform.h, VectorDistanceTransform.h,
+/// ExactDistanceTransform.h) consume and produce it, and volumeToLevelSet()
+/// (VolumeToLevelSet.h) turns it into a sparse FloatGrid.
+///
+/// Layout: x fastest, then y, then z (index = (k*ny + j)*nx + i). Sample (i,j,k) sits at the
+/// world position origin + (i*sx, j*sy, k*sz): voxel centres, the convention of OpenVDB's
+/// cell-centred index space with a scale transform (and of NIfTI/INR voxel coordinates).
 #pragma once
 
 #include <levelforge/core/Exceptions.h>

@@ -1,8 +1,10 @@
-// levelforge — typed exceptions.
-//
-// Library code never exits: every failure is reported by throwing one of these types, each
-// with a message a user can act on (which file, which element, which value). The CLI turns
-// them into one line on stderr and a non-zero exit code.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Typed exceptions.
+///
+/// Library code never exits: every failure is reported by throwing one of these types, each
+/// with a message a user can act on (which file, which element, which value). The CLI turns
+/// them into one line on stderr and a non-zero exit code.
 #pragma once
 
 #include <stdexcept>

@@ -6,6 +6,8 @@
 ///        everywhere, and the operators declare these parameters once.
 #pragma once
 
+#include <levelforge/core/TriangleMesh.h>
+
 #include <openvdb/util/NullInterrupter.h>
 
 #include <cstdint>
@@ -55,5 +57,17 @@ struct GridSpec
         return units == WidthUnits::World ? width / voxelSize : width;
     }
 };
+
+/// @brief The voxel size (world units) a conversion of @p mesh with @p spec uses:
+///        spec.voxelSize when > 0, else the longest side of the mesh bounding box divided by
+///        spec.voxelCount.
+/// @param[in] mesh  the input mesh (only its bounding box is read when voxelSize <= 0)
+/// @param[in] spec  voxelSize / voxelCount
+/// @return the voxel edge length, world units (> 0)
+/// @throws InvalidArgumentError if voxelSize is negative or not finite, or if neither a
+///         positive voxel size nor a positive count is given;
+/// @throws InvalidMeshError if the count is used and the mesh is empty or its bounding box
+///         has zero or non-finite size.
+double resolveVoxelSize(const TriangleMesh& mesh, const GridSpec& spec);
 
 } // namespace levelforge

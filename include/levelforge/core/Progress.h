@@ -1,9 +1,11 @@
-// levelforge — progress reporting and interruption.
-//
-// Long operations take an `openvdb::util::NullInterrupter*` (OpenVDB's own convention): they call
-// start(name), then wasInterrupted(percent) at coarse steps from inside TBB loops, then end().
-// When wasInterrupted returns true the operation throws InterruptedError and discards its
-// partial result. StderrProgress prints "name: NN%" lines on stderr for the CLI.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Progress reporting and interruption.
+///
+/// Long operations take an `openvdb::util::NullInterrupter*` (OpenVDB's own convention): they call
+/// start(name), then wasInterrupted(percent) at coarse steps from inside TBB loops, then end().
+/// When wasInterrupted returns true the operation throws InterruptedError and discards its
+/// partial result. StderrProgress prints "name: NN%" lines on stderr for the CLI.
 #pragma once
 
 #include <openvdb/util/NullInterrupter.h>
@@ -30,11 +32,5 @@ private:
     bool mEnabled;
     std::chrono::steady_clock::time_point mStart;
 };
-
-namespace progress_internal {
-/// Calls interrupter->wasInterrupted(percent) if an interrupter is set; throws InterruptedError
-/// when it asks to stop.
-void check(openvdb::util::NullInterrupter* interrupter, int percent = -1);
-} // namespace progress_internal
 
 } // namespace levelforge

@@ -1,22 +1,22 @@
-// levelforge — angle-weighted pseudonormals (Bærentzen & Aanæs, IEEE TVCG 2005).
-//
-// For a closed, consistently oriented 2-manifold, the sign of dot(p - c, n) where c is the
-// closest point on the mesh and n is the pseudonormal of the feature containing c (face normal,
-// edge normal = sum of the two incident face normals, vertex normal = sum of incident face
-// normals weighted by their incident angles) tells inside from outside exactly. This is the sign
-// rule of Chang et al. §4.2. Non-manifold edges sum all incident face normals; boundary edges
-// use their single face's normal.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Angle-weighted pseudonormals (Bærentzen & Aanæs, IEEE TVCG 2005).
+///
+/// For a closed, consistently oriented 2-manifold, the sign of dot(p - c, n) where c is the
+/// closest point on the mesh and n is the pseudonormal of the feature containing c (face normal,
+/// edge normal = sum of the two incident face normals, vertex normal = sum of incident face
+/// normals weighted by their incident angles) tells inside from outside exactly. This is the sign
+/// rule of Chang et al. §4.2. Non-manifold edges sum all incident face normals; boundary edges
+/// use their single face's normal.
 #pragma once
 
+#include <levelforge/core/TriangleFeature.h>
 #include <levelforge/core/TriangleMesh.h>
 
 #include <cstdint>
 #include <vector>
 
 namespace levelforge {
-
-/// Which feature of a triangle holds the closest point (see TriangleDistance.h).
-enum class TriangleFeature : uint8_t { Face = 0, Vertex0, Vertex1, Vertex2, Edge01, Edge12, Edge20 };
 
 class PseudoNormals
 {

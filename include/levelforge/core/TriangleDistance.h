@@ -1,12 +1,14 @@
-// levelforge — exact point–triangle distance with the closest feature.
-//
-// The closest point of a triangle to a point, found by Voronoi-region classification (vertex,
-// edge or face region; the standard barycentric case analysis, e.g. Ericson, "Real-Time
-// Collision Detection" §5.1.5). Exact up to double rounding. The returned feature selects the
-// pseudonormal used for the sign (PseudoNormals.h, Chang et al. §4.2).
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Exact point–triangle distance with the closest feature.
+///
+/// The closest point of a triangle to a point, found by Voronoi-region classification (vertex,
+/// edge or face region; the standard barycentric case analysis, e.g. Ericson, "Real-Time
+/// Collision Detection" §5.1.5). Exact up to double rounding. The returned feature selects the
+/// pseudonormal used for the sign (PseudoNormals.h, Chang et al. §4.2).
 #pragma once
 
-#include <levelforge/core/PseudoNormals.h>
+#include <levelforge/core/TriangleFeature.h>
 #include <levelforge/core/TriangleMesh.h>
 
 namespace levelforge {

@@ -1,8 +1,10 @@
-// levelforge — the indexed triangle mesh every algorithm consumes.
-//
-// Positions are stored in double precision, world units; triangles index into them. A mesh is
-// produced by MeshIO (files, through OpenMesh) or MeshShapes (procedural shapes) and is checked
-// by MeshValidation before conversion. Nothing here allocates per triangle.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief The indexed triangle mesh every algorithm consumes.
+///
+/// Positions are stored in double precision, world units; triangles index into them. A mesh is
+/// produced by MeshIO (files, through OpenMesh) or MeshShapes (procedural shapes) and is checked
+/// by MeshValidation before conversion. Nothing here allocates per triangle.
 #pragma once
 
 #include <openvdb/math/BBox.h>

@@ -1,51 +1,54 @@
-// levelforge — reading and writing triangle meshes.
-//
-// readMesh() reads OBJ, OFF, PLY (ASCII and binary) and STL (ASCII and binary) through
-// OpenMesh's own readers (OpenMesh::IO::IOManager), but with an importer that copies vertices and
-// faces straight into a TriangleMesh. OpenMesh's half-edge mesh is never built, so nothing is
-// lost to it: faces on non-manifold ("complex") edges, faces of a soup, faces whose winding
-// disagrees with their neighbours all arrive as they are in the file.
-//
-// Guarantees of readMesh():
-//  - every triangle indexes an existing vertex and every vertex coordinate is finite; otherwise
-//    it throws InvalidMeshError naming the file, the element (0-based face / vertex number, and
-//    the line for text files) and the offending value;
-//  - polygons with more than three corners are triangulated by ear clipping in the polygon's
-//    best-fit (Newell) plane, so concave polygons come out right and every triangle keeps the
-//    polygon's winding; a polygon that ear clipping cannot handle (self-intersecting,
-//    collinear) falls back to a fan;
-//  - faces with fewer than three distinct corners carry no area and are dropped (OpenMesh's OBJ
-//    and STL readers drop them before we see them); MeshReadInfo::droppedFaces counts them.
-//    (OpenMesh's OBJ reader also removes every repeated corner of a polygon, keeping the first
-//    occurrence, before we see it.) Zero-area faces with three distinct corners are kept;
-//    validateMesh() reports them;
-//  - the file order of vertices (OBJ, OFF, PLY) and of faces is kept; STL has no shared vertices,
-//    OpenMesh's STL reader merges corners with bit-identical coordinates (0 and -0 count as equal);
-//  - OpenMesh hands coordinates over in single precision. For OBJ, OFF and PLY the positions are
-//    recovered in double precision from the file text (or the binary PLY doubles) by the same
-//    pre-scan that checks the file (MeshReadInfo::doublePrecision says whether that happened);
-//    STL is single precision by definition of the format;
-//  - an empty file, or a file with no face, throws InvalidMeshError ("no triangles").
-// Errors: the file is missing, unreadable, or has an unsupported extension -> IoError; the file
-// is readable but its content is wrong -> InvalidMeshError. Every message names the file.
-//
-// The pre-scan: OpenMesh's text readers are silent about several faults. An OBJ vertex that does
-// not parse ("v nan 0 0", "v 1e39 0 0") is skipped, shifting every later index; an OFF/PLY
-// number that does not parse derails the stream into garbage faces; a binary STL facet with a NaN
-// corner is merged away; out-of-range OBJ/OFF indices are passed on as invalid handles. So before
-// OpenMesh reads the file, a light scan (buffered, no allocation per line) checks coordinates and
-// face indices and reports the first fault with its line number. It follows OpenMesh's own
-// reading rules, so OFF files with comments or with the counts on the "OFF" line (which
-// OpenMesh reads as empty) are reported as errors rather than read as nothing.
-//
-// writeMesh() writes OBJ, OFF (ASCII, shortest round-trip decimal form of each double), PLY
-// (binary little endian, double coordinates) or STL (binary, single precision), chosen by the
-// extension. It writes what it is given (validate first if you need guarantees; only STL, which
-// stores coordinates per facet, checks indices). The file appears atomically: the data goes to a
-// temporary file in the same folder which is renamed over the target when complete.
-//
-// Thread safety: OpenMesh's reader modules are singletons with state; readMesh() serialises the
-// OpenMesh part of the work with a mutex, so it may be called from several threads.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Reading and writing triangle meshes (OBJ, OFF, PLY, STL).
+///
+/// readMesh() reads OBJ, OFF, PLY (ASCII and binary) and STL (ASCII and binary) through
+/// OpenMesh's own readers (OpenMesh::IO::IOManager), but with an importer that copies vertices and
+/// faces straight into a TriangleMesh. OpenMesh's half-edge mesh is never built, so nothing is
+/// lost to it: faces on non-manifold ("complex") edges, faces of a soup, faces whose winding
+/// disagrees with their neighbours all arrive as they are in the file.
+///
+/// Guarantees of readMesh():
+///  - every triangle indexes an existing vertex and every vertex coordinate is finite; otherwise
+///    it throws InvalidMeshError naming the file, the element (0-based face / vertex number, and
+///    the line for text files) and the offending value;
+///  - polygons with more than three corners are triangulated by ear clipping in the polygon's
+///    best-fit (Newell) plane, so concave polygons come out right and every triangle keeps the
+///    polygon's winding; a polygon that ear clipping cannot handle (self-intersecting,
+///    collinear) falls back to a fan;
+///  - faces with fewer than three distinct corners carry no area and are dropped (OpenMesh's OBJ
+///    and STL readers drop them before we see them); MeshReadInfo::droppedFaces counts them.
+///    (OpenMesh's OBJ reader also removes every repeated corner of a polygon, keeping the first
+///    occurrence, before we see it.) Zero-area faces with three distinct corners are kept;
+///    validateMesh() reports them;
+///  - the file order of vertices (OBJ, OFF, PLY) and of faces is kept; STL has no shared vertices,
+///    OpenMesh's STL reader merges corners with bit-identical coordinates (0 and -0 count as equal);
+///  - OpenMesh hands coordinates over in single precision. For OBJ, OFF and PLY the positions are
+///    recovered in double precision from the file text (or the binary PLY doubles) by the same
+///    pre-scan that checks the file (MeshReadInfo::doublePrecision says whether that happened);
+///    STL is single precision by definition of the format;
+///  - an empty file, or a file with no face, throws InvalidMeshError ("no triangles").
+/// Errors: the file is missing, unreadable, or has an unsupported extension -> IoError; the file
+/// is readable but its content is wrong -> InvalidMeshError. Every message names the file.
+///
+/// The pre-scan: OpenMesh's text readers are silent about several faults. An OBJ vertex that does
+/// not parse ("v nan 0 0", "v 1e39 0 0") is skipped, shifting every later index; an OFF/PLY
+/// number that does not parse derails the stream into garbage faces; a binary STL facet with a NaN
+/// corner is merged away; out-of-range OBJ/OFF indices are passed on as invalid handles. So before
+/// OpenMesh reads the file, a light scan (buffered, no allocation per line) checks coordinates and
+/// face indices and reports the first fault with its line number. It follows OpenMesh's own
+/// reading rules, so OFF files with comments or with the counts on the "OFF" line (which
+/// OpenMesh reads as empty) are reported as errors rather than read as nothing.
+///
+/// writeMesh() writes OBJ, OFF (ASCII, shortest round-trip decimal form of each double), PLY
+/// (binary little endian, double coordinates) or STL (binary, single precision), chosen by the
+/// extension. It writes what it is given (validate first if you need guarantees; only STL, which
+/// stores coordinates per facet, checks indices). The file appears atomically: the data goes to a
+/// temporary file in the same folder, which is flushed to disk and renamed over the target when
+/// complete; on failure nothing is left behind.
+///
+/// Thread safety: OpenMesh's reader modules are singletons with state; readMesh() serialises the
+/// OpenMesh part of the work with a mutex, so it may be called from several threads.
 #pragma once
 
 #include <levelforge/core/TriangleMesh.h>
@@ -69,22 +72,39 @@ struct MeshReadInfo
     bool doublePrecision = false;  ///< positions recovered in double precision from the file
 };
 
-/// Reads a triangle mesh (.obj, .off, .ply, .stl, also .stla/.stlb; case-insensitive).
-/// mesh.source is set to @a path. Throws IoError or InvalidMeshError (see above).
+/// @brief Reads a triangle mesh (.obj, .off, .ply, .stl, also .stla/.stlb; case-insensitive),
+///        with the guarantees of the file comment.
+/// @param[in] path  the mesh file; the extension chooses the format
+/// @return the mesh, with mesh.source set to @p path.
+/// @throws IoError when the file is missing, unreadable or has an unsupported extension.
+/// @throws InvalidMeshError when its content is wrong (the message names the file, the element
+///         and the value).
 TriangleMesh readMesh(const std::string& path);
 
-/// As readMesh(path), and fills @a info.
+/// @brief As readMesh(path), and says what the file held.
+/// @param[in]  path  the mesh file
+/// @param[out] info  format, counts of vertices, faces, triangulated and dropped faces, and
+///                   whether positions are double precision
+/// @return the mesh, with mesh.source set to @p path.
+/// @throws IoError, InvalidMeshError as readMesh(path).
 TriangleMesh readMesh(const std::string& path, MeshReadInfo& info);
 
-/// Writes @a mesh to @a path; the format follows the extension (.obj, .off, .ply, .stl).
-/// Throws IoError (unsupported extension, cannot create or write the file) or, for STL only,
-/// InvalidMeshError when a triangle index is out of range.
+/// @brief Writes @p mesh to @p path atomically; the format follows the extension (.obj, .off,
+///        .ply, .stl; case-insensitive), see the file comment.
+/// @param[in] mesh  the mesh, written as it is (validate first if you need guarantees)
+/// @param[in] path  the file to create or replace
+/// @throws IoError on an unsupported extension, or when the file cannot be created or written
+///         (nothing is left behind then).
+/// @throws InvalidMeshError, for STL only, when a triangle index is out of range.
 void writeMesh(const TriangleMesh& mesh, const std::string& path);
 
-/// True when readMesh() accepts the extension of @a path.
+/// @brief Whether readMesh() accepts the extension of @p path (the file is not opened).
+/// @param[in] path  a file path
+/// @return true for .obj, .off, .ply, .stl, .stla and .stlb, in any letter case.
 bool isReadableMeshFile(const std::string& path);
 
-/// Extensions readMesh() accepts, lower case with the dot: ".obj", ".off", ".ply", ".stl", ...
+/// @brief The extensions readMesh() accepts.
+/// @return lower case with the dot: ".obj", ".off", ".ply", ".stl", ".stla", ".stlb".
 std::vector<std::string> readableMeshExtensions();
 
 } // namespace levelforge

@@ -1,25 +1,28 @@
-// levelforge — the front door: triangle mesh → exact narrow-band signed distance FloatGrid.
-//
-// Algorithm: Chang, Cha, Ihm, "Computing Local Signed Distance Fields for Large Polygonal
-// Models", CGF 2008 (../shared/papers/000_*), in sparse VDB trees:
-//   1. microtriangle voxelization (§3.1, MicrotriangleVoxelizer.h) finds every boundary cell;
-//   2. two-pass triangle lists per boundary cell (§3.2, TriangleListTree.h);
-//   3. layered, culled search of nearby boundary cells for every band voxel (§4.1, generalised
-//      from the paper's 1-voxel "local cells" to any band width; LocalSignedDistance.h);
-//   4. sign from the angle-weighted pseudonormal of the closest feature (§4.2, PseudoNormals.h).
-//
-// What is exact: every active voxel holds the Euclidean distance (computed in double precision,
-// stored as float) to the closest triangle, signed by the pseudonormal rule. That rule gives the
-// true inside/outside for closed, consistently oriented, non-self-intersecting meshes; for open
-// or broken meshes the sign is the pseudonormal's verdict and may be inconsistent far from
-// the surface. The band is exact out to the requested widths: a voxel is active iff
-// -interiorWidth < d/voxelSize < exteriorWidth.
-//
-// Output follows OpenVDB's level-set conventions: GRID_LEVEL_SET class, world-unit values,
-// negative inside, background = exteriorWidth * voxelSize, inactive voxels and tiles carry
-// ±background (signed flood fill), voxel centres at integer index coordinates.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief The front door: triangle mesh → exact narrow-band signed distance FloatGrid.
+///
+/// Algorithm: Chang, Cha, Ihm, "Computing Local Signed Distance Fields for Large Polygonal
+/// Models", CGF 2008, in sparse VDB trees:
+///   1. microtriangle voxelization (§3.1, MicrotriangleVoxelizer.h) finds every boundary cell;
+///   2. two-pass triangle lists per boundary cell (§3.2, TriangleListTree.h);
+///   3. layered, culled search of nearby boundary cells for every band voxel (§4.1, generalised
+///      from the paper's 1-voxel "local cells" to any band width; src/mesh/MeshToLevelSet.cc);
+///   4. sign from the angle-weighted pseudonormal of the closest feature (§4.2, PseudoNormals.h).
+///
+/// What is exact: every active voxel holds the Euclidean distance (computed in double precision,
+/// stored as float) to the closest triangle, signed by the pseudonormal rule. That rule gives the
+/// true inside/outside for closed, consistently oriented, non-self-intersecting meshes; for open
+/// or broken meshes the sign is the pseudonormal's verdict and may be inconsistent far from
+/// the surface. The band is exact out to the requested widths: a voxel is active iff
+/// -interiorWidth < d/voxelSize < exteriorWidth.
+///
+/// Output follows OpenVDB's level-set conventions: GRID_LEVEL_SET class, world-unit values,
+/// negative inside, background = exteriorWidth * voxelSize, inactive voxels and tiles carry
+/// ±background (signed flood fill), voxel centres at integer index coordinates.
 #pragma once
 
+#include <levelforge/core/GridSpec.h>
 #include <levelforge/core/TriangleMesh.h>
 
 #include <openvdb/openvdb.h>
@@ -31,22 +34,12 @@
 
 namespace levelforge {
 
-struct MeshToLevelSetOptions
+/// Options of meshToLevelSet(): everything is in GridSpec (voxel size or count, band widths in
+/// voxels or world units, grid name, voxel budget, interrupter). The widths are rounded to float
+/// (the band limits are stored in float) after conversion to voxels; maxVoxels bounds the
+/// estimated band voxels.
+struct MeshToLevelSetOptions : GridSpec
 {
-    /// Voxel edge length, world units. If <= 0 (default) it is derived from voxelCount.
-    double voxelSize = 0.0;
-    /// Voxels along the longest axis of the mesh bounding box; used when voxelSize <= 0.
-    int voxelCount = 0;
-    /// Half-width of the band outside the surface, in voxels (OpenVDB default 3).
-    float exteriorWidth = 3.0f;
-    /// Half-width of the band inside the surface, in voxels (OpenVDB default 3).
-    float interiorWidth = 3.0f;
-    /// Name stored in the grid (Houdini's VDB from Polygons uses "surface").
-    std::string gridName = "surface";
-    /// Refuse to build grids with more candidate voxels than this (protects memory); 0 = no limit.
-    uint64_t maxVoxels = 2'000'000'000ull;
-    /// Optional progress / interruption (OpenVDB convention). Not owned.
-    openvdb::util::NullInterrupter* interrupter = nullptr;
 };
 
 /// Counters in the spirit of the paper's Tables 1–3, filled by meshToLevelSet().
@@ -73,10 +66,6 @@ struct MeshToLevelSetStats
     }
 };
 
-/// Voxel size (world units) that meshToLevelSet would use for this mesh and these options.
-/// Throws InvalidArgumentError if neither a positive voxel size nor a positive count is given.
-double resolveVoxelSize(const TriangleMesh& mesh, const MeshToLevelSetOptions& options);
-
 /// Converts a triangle mesh to an exact narrow-band level set (see the file comment).
 /// Throws InvalidArgumentError (bad options), InvalidMeshError (empty mesh, NaN, bad index),
 /// ResourceLimitError (band too large), InterruptedError.
@@ -96,7 +85,7 @@ struct LevelSetWithClosestPoints
 };
 
 /// meshToLevelSet() that also returns the closest-point offsets — the exact shell of vectors
-/// that the Vector expansion (VectorExpansion.h, Satherley–Jones §4.3) propagates.
+/// that the Vector expansion (docs/expansion.md, Satherley–Jones §4.3) propagates.
 LevelSetWithClosestPoints meshToLevelSetWithClosestPoints(const TriangleMesh& mesh,
                                                           const MeshToLevelSetOptions& options = {},
                                                           MeshToLevelSetStats* stats = nullptr);

@@ -1,22 +1,24 @@
-// levelforge — microtriangle voxelization (Chang, Cha, Ihm, CGF 2008, §3.1 and §3.3).
-//
-// Finds every cell a triangle overlaps. Coordinates are in *cell space*: cell (i,j,k) is the
-// unit cube [i,i+1)×[j,j+1)×[k,k+1) (meshToLevelSet maps voxel ijk's cell there by
-// q = p/voxelSize + 0.5). A triangle whose AABB is longer than one cell, d_T > 1, is split into
-// ceil(d_T)² microtriangles (each edge into ceil(d_T) segments), so each microtriangle fits in a
-// unit box and spans at most 2 cells per axis. Then:
-//   * vertex scan: the cell of every microtriangle vertex is reported;
-//   * I = Ix+Iy+Iz (Iα = 1 when the three vertices share the α cell index):
-//       I = 3, 2 (cases 1, 2): nothing more — all cells already hold a vertex;
-//       I = 1 (case 3): the 2×2 cells in the plane of the two varying axes — the ones holding no
-//         vertex are tested by a 2-D separating-axis test of the projected microtriangle;
-//       I = 0 (case 4): the 2×2×2 cube — cells holding no vertex get the Akenine-Möller
-//         triangle–box test (plane + 9 edge axes; the AABB axes pass by construction);
-//   * white microtriangles are processed with all cases, black ones (which share all their
-//     edges with white ones) only with case 4, as in §3.3.
-// Exactness: the reported set contains every cell whose interior the triangle meets. The
-// separating tests are closed with a tolerance of 1e-9 cell, so cells the triangle merely
-// touches (or misses by less than that) may be reported too; that only adds list entries.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Microtriangle voxelization (Chang, Cha, Ihm, CGF 2008, §3.1 and §3.3).
+///
+/// Finds every cell a triangle overlaps. Coordinates are in *cell space*: cell (i,j,k) is the
+/// unit cube [i,i+1)×[j,j+1)×[k,k+1) (meshToLevelSet maps voxel ijk's cell there by
+/// q = p/voxelSize + 0.5). A triangle whose AABB is longer than one cell, d_T > 1, is split into
+/// ceil(d_T)² microtriangles (each edge into ceil(d_T) segments), so each microtriangle fits in a
+/// unit box and spans at most 2 cells per axis. Then:
+///   * vertex scan: the cell of every microtriangle vertex is reported;
+///   * I = Ix+Iy+Iz (Iα = 1 when the three vertices share the α cell index):
+///       I = 3, 2 (cases 1, 2): nothing more — all cells already hold a vertex;
+///       I = 1 (case 3): the 2×2 cells in the plane of the two varying axes — the ones holding no
+///         vertex are tested by a 2-D separating-axis test of the projected microtriangle;
+///       I = 0 (case 4): the 2×2×2 cube — cells holding no vertex get the Akenine-Möller
+///         triangle–box test (plane + 9 edge axes; the AABB axes pass by construction);
+///   * white microtriangles are processed with all cases, black ones (which share all their
+///     edges with white ones) only with case 4, as in §3.3.
+/// Exactness: the reported set contains every cell whose interior the triangle meets. The
+/// separating tests are closed with a tolerance of 1e-9 cell, so cells the triangle merely
+/// touches (or misses by less than that) may be reported too; that only adds list entries.
 #pragma once
 
 #include <levelforge/core/TriangleMesh.h>

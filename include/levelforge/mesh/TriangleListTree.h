@@ -1,16 +1,18 @@
-// levelforge — per-boundary-cell triangle lists stored in a sparse VDB tree (Chang et al. §3.2).
-//
-// Built in two passes, as the paper prescribes, with no per-cell allocation:
-//   pass 1 voxelizes every triangle (MicrotriangleVoxelizer.h) and counts, per boundary cell,
-//          how many triangles overlap it (the cells are the active voxels of a UInt32Tree);
-//   then   cells are numbered in leaf order and one index array is allocated (prefix sums);
-//   pass 2 drops each triangle id into its cells' slots; every list is finally sorted by
-//          triangle id so the structure is identical for any thread count.
-// Unlike the paper, pass 2 does not voxelize again: pass 1 keeps the cells it found, in one
-// buffer per chunk of 256 triangles (12 bytes per list entry, freed during pass 2). That
-// halves the voxelization time for a transient memory cost of about 3× the index array.
-// The tree maps a cell (cell space: voxel ijk ↔ cell ijk) to its ordinal; the ordinal indexes
-// `begin`, whose consecutive entries delimit the list in `ids`.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Per-boundary-cell triangle lists stored in a sparse VDB tree (Chang et al. §3.2).
+///
+/// Built in two passes, as the paper prescribes, with no per-cell allocation:
+///   pass 1 voxelizes every triangle (MicrotriangleVoxelizer.h) and counts, per boundary cell,
+///          how many triangles overlap it (the cells are the active voxels of a UInt32Tree);
+///   then   cells are numbered in leaf order and one index array is allocated (prefix sums);
+///   pass 2 drops each triangle id into its cells' slots; every list is finally sorted by
+///          triangle id so the structure is identical for any thread count.
+/// Unlike the paper, pass 2 does not voxelize again: pass 1 keeps the cells it found, in one
+/// buffer per chunk of 256 triangles (12 bytes per list entry, freed during pass 2). That
+/// halves the voxelization time for a transient memory cost of about 3× the index array.
+/// The tree maps a cell (cell space: voxel ijk ↔ cell ijk) to its ordinal; the ordinal indexes
+/// `begin`, whose consecutive entries delimit the list in `ids`.
 #pragma once
 
 #include <levelforge/mesh/MicrotriangleVoxelizer.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // levelforge — exact signed distance reference, for tests, benchmarks and accuracy reports.
 //
 // A bounding-volume hierarchy over the triangles answers closest-point queries exactly (double
@@ -17,6 +18,10 @@
 #include <vector>
 
 namespace levelforge {
+
+namespace detail {
+class Bvh;
+}
 
 class ExactReference
 {
@@ -42,11 +47,10 @@ public:
     const PseudoNormals& pseudoNormals() const { return *mNormals; }
 
 private:
-    struct Node { BBoxd box; uint32_t first, count; uint32_t left, right; };
     const TriangleMesh& mMesh;
     std::unique_ptr<PseudoNormals> mNormals;
-    std::vector<uint32_t> mOrder;   ///< triangle ids in BVH leaf order (non-degenerate only)
-    std::vector<Node> mNodes;
+    /// BVH over the non-degenerate triangles; its order() holds their ids in leaf order.
+    std::unique_ptr<detail::Bvh> mBvh;
 };
 
 /// Accuracy of a level set against the exact reference, in voxel units.

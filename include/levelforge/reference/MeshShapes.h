@@ -1,22 +1,26 @@
-// levelforge — procedural meshes for tests, benchmarks and the demo.
-//
-// Every closed shape here is watertight with shared vertices (each edge used by exactly two
-// triangles, once in each direction), consistently wound counter-clockwise seen from outside
-// (so its divergence-theorem signed volume is positive), free of degenerate triangles and of
-// self-intersections; validateMesh(shape).closed() holds. Each sets mesh.source to a short
-// description such as "<icosphere r=1 s=3>". Invalid parameters throw InvalidArgumentError.
-//
-// Analytic references for tests (the meshes are inscribed polyhedra, so their volume and area
-// converge to these from below as the resolution grows):
-//   icosphere    V = 4/3 pi r^3,       A = 4 pi r^2
-//   box          V = dx dy dz,         A = 2 (dx dy + dy dz + dz dx)   (exact)
-//   torus        V = 2 pi^2 R r^2,     A = 4 pi^2 R r
-//   torus knot   V = pi t^2 L,         A = 2 pi t L   (L = centre-line length, Pappus/Weyl tube
-//                formulas, exact for a tube thinner than the curve's radius of curvature and
-//                without self-contact)
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Procedural meshes for tests, benchmarks and the demo.
+///
+/// Every closed shape here is watertight with shared vertices (each edge used by exactly two
+/// triangles, once in each direction), consistently wound counter-clockwise seen from outside
+/// (so its divergence-theorem signed volume is positive), free of degenerate triangles and of
+/// self-intersections; validateMesh(shape).closed() holds. Each sets mesh.source to a short
+/// description such as "<icosphere r=1 s=3>". Invalid parameters throw InvalidArgumentError.
+///
+/// Analytic references for tests (the meshes are inscribed polyhedra, so their volume and area
+/// converge to these from below as the resolution grows):
+///   icosphere    V = 4/3 pi r^3,       A = 4 pi r^2
+///   box          V = dx dy dz,         A = 2 (dx dy + dy dz + dz dx)   (exact)
+///   torus        V = 2 pi^2 R r^2,     A = 4 pi^2 R r
+///   torus knot   V = pi t^2 L,         A = 2 pi t L   (L = centre-line length, Pappus/Weyl tube
+///                formulas, exact for a tube thinner than the curve's radius of curvature and
+///                without self-contact)
 #pragma once
 
 #include <levelforge/core/TriangleMesh.h>
+
+#include <string>
 
 #include <cstdint>
 #include <vector>
@@ -65,5 +69,15 @@ double signedVolume(const TriangleMesh& mesh);
 
 /// Total area of the triangles of @a mesh.
 double surfaceArea(const TriangleMesh& mesh);
+
+/// @brief The built-in meshes the command-line tools accept as an input name.
+/// @param[in] name  "builtin:torus-knot" (makeTorusKnot()), "builtin:sphere" (unit icosphere,
+///                  4 subdivisions), "builtin:box" (the cube [-1, 1]³)
+/// @return the mesh, with its `source` set by its generator
+/// @throws InvalidArgumentError for another "builtin:" name (the message lists the valid ones)
+TriangleMesh makeBuiltinMesh(const std::string& name);
+
+/// @brief True when @p name starts with "builtin:" (a name for makeBuiltinMesh(), not a path).
+bool isBuiltinMeshName(const std::string& name);
 
 } // namespace levelforge

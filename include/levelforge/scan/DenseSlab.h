@@ -1,24 +1,26 @@
-// levelforge — dense slabs: the unit of work a scan-conversion backend computes.
-//
-// T4 scan conversion (Erleben & Dohlmann, ../shared/papers/001_*; TetScanConversion.h) slices
-// tetrahedral shells with the z-planes of the grid. The sweep groups the resulting convex
-// cross-sections by dense slab — a box of voxels, z-range x xy-rectangle, aligned to VDB leaf
-// boundaries — and hands each slab with its items to a SlabBackend, which fills the slab's
-// distances. The slab is then scattered back into the sparse FloatGrid.
-//
-// Contract of a backend (what a GPU twin must reproduce):
-//   * coverage: voxel (i, j, z) of the slab is covered by an item on plane z iff its centre
-//     (i, j) lies in the closed convex polygon (exact scanline spans with a 1e-7 voxel outward
-//     tolerance; no enlargement of the polygon). This is exact point sampling of the shell, so
-//     no voxel centre inside a shell is missed (no aliasing).
-//   * value: for every covered voxel, the exact closest point on the item's triangle
-//     (closestPointOnTriangle, world coordinates, voxel centre = index * voxelSize) and the sign
-//     of dot(p - c, n) with n the pseudonormal of the closest feature (vertex, edge or face); the
-//     slab keeps the item with the smallest distance, ties broken by the smaller triangle index,
-//     so the result does not depend on the item order or the number of threads.
-//   * the CPU backend compares squared distances in double precision and stores double distances
-//     (the band test -interior < d/h < exterior is made on them, then they are stored as float,
-//     exactly like the Chang path); a float GPU backend agrees within float rounding.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Dense slabs: the unit of work a scan-conversion backend computes.
+///
+/// T4 scan conversion (Erleben & Dohlmann, "Scan Conversion of Signed Distance Fields"; TetScanConversion.h) slices
+/// tetrahedral shells with the z-planes of the grid. The sweep groups the resulting convex
+/// cross-sections by dense slab — a box of voxels, z-range x xy-rectangle, aligned to VDB leaf
+/// boundaries — and hands each slab with its items to a SlabBackend, which fills the slab's
+/// distances. The slab is then scattered back into the sparse FloatGrid.
+///
+/// Contract of a backend (what a GPU twin must reproduce):
+///   * coverage: voxel (i, j, z) of the slab is covered by an item on plane z iff its centre
+///     (i, j) lies in the closed convex polygon (exact scanline spans with a 1e-7 voxel outward
+///     tolerance; no enlargement of the polygon). This is exact point sampling of the shell, so
+///     no voxel centre inside a shell is missed (no aliasing).
+///   * value: for every covered voxel, the exact closest point on the item's triangle
+///     (closestPointOnTriangle, world coordinates, voxel centre = index * voxelSize) and the sign
+///     of dot(p - c, n) with n the pseudonormal of the closest feature (vertex, edge or face); the
+///     slab keeps the item with the smallest distance, ties broken by the smaller triangle index,
+///     so the result does not depend on the item order or the number of threads.
+///   * the CPU backend compares squared distances in double precision and stores double distances
+///     (the band test -interior < d/h < exterior is made on them, then they are stored as float,
+///     exactly like the Chang path); a float GPU backend agrees within float rounding.
 #pragma once
 
 #include <levelforge/core/PseudoNormals.h>

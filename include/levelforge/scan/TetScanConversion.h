@@ -1,37 +1,40 @@
-// levelforge — T4 scan conversion: triangle mesh → narrow-band signed distance FloatGrid by
-// slicing tetrahedral shells with the z-planes of the grid.
-//
-// Paper: K. Erleben, H. Dohlmann, "Scan Conversion of Signed Distance Fields"
-// (../shared/papers/001_*), Figures 8–9:
-//   1. shell: tetrahedra around every face, tagged with the face (TetrahedralShell.h, §3.3–3.5),
-//      built in index space with eps = max(exteriorWidth, interiorWidth) voxels;
-//   2. sweep: tetrahedra sorted by min z; for each z-slab of the grid (slabDepth planes) the
-//      active set comes from a sweep line (add by min z, drop by max z); each active tetrahedron
-//      is cut by each plane of the slab into a convex polygon (cases A, B, C of §3.1), and the
-//      polygons of one face's tetrahedra are merged into their convex hull — exactly the slice
-//      of the face's shell, which is convex — so each (face, plane) is rasterized once;
-//   3. the polygons are binned into dense slabs (slabDepth x slabWidth x slabWidth voxels, leaf
-//      aligned) and a SlabBackend (DenseSlab.h; CpuSlabBackend by default) fills each slab with the
-//      exact distance to the polygon's source triangle at every covered voxel centre, signed by
-//      the angle-weighted pseudonormal of the closest feature (the triangle-frame case analysis
-//      of §3.2 is closestPointOnTriangle's Voronoi classification), min-combined;
-//   4. slabs are scattered into the sparse tree; voxels with -interiorWidth < d/h < exteriorWidth
-//      become active; signed flood fill.
-//
-// What is exact: every active voxel holds the exact distance (double, stored as float) to a
-// triangle whose shell covers it, and the min over those triangles. Where the voxel is covered
-// by the shell of its true closest triangle — always with ShellCoverage::Complete (the default),
-// where every shell contains the whole eps-neighbourhood of its face — the value and sign equal
-// ExactReference and meshToLevelSet (Chang), and no voxel of the band is missing. With
-// ShellCoverage::Paper the pseudonormal-family shells (PseudoNormal, Thin, Offset) are the paper's
-// hulls, and voxels near |d| = eps outside the shell of their closest triangle may be missing or
-// hold a larger distance — and then the sign — of a neighbour (see TetrahedralShell.h and
-// docs/scan-conversion.md). Sign: pseudonormal rule of the closest feature, so with Obb there are
-// no plane-test or construction leaks (§2) on closed, consistently oriented meshes; a fold
-// (flipped triangle) is wrong by construction of its pseudonormals — there is no fix in the paper.
-// Results do not depend on the number of threads.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief T4 scan conversion: triangle mesh → narrow-band signed distance FloatGrid by
+/// slicing tetrahedral shells with the z-planes of the grid.
+///
+/// Paper: K. Erleben, H. Dohlmann, "Scan Conversion of Signed Distance Fields"
+///, Figures 8–9:
+///   1. shell: tetrahedra around every face, tagged with the face (TetrahedralShell.h, §3.3–3.5),
+///      built in index space with eps = max(exteriorWidth, interiorWidth) voxels;
+///   2. sweep: tetrahedra sorted by min z; for each z-slab of the grid (slabDepth planes) the
+///      active set comes from a sweep line (add by min z, drop by max z); each active tetrahedron
+///      is cut by each plane of the slab into a convex polygon (cases A, B, C of §3.1), and the
+///      polygons of one face's tetrahedra are merged into their convex hull — exactly the slice
+///      of the face's shell, which is convex — so each (face, plane) is rasterized once;
+///   3. the polygons are binned into dense slabs (slabDepth x slabWidth x slabWidth voxels, leaf
+///      aligned) and a SlabBackend (DenseSlab.h; CpuSlabBackend by default) fills each slab with the
+///      exact distance to the polygon's source triangle at every covered voxel centre, signed by
+///      the angle-weighted pseudonormal of the closest feature (the triangle-frame case analysis
+///      of §3.2 is closestPointOnTriangle's Voronoi classification), min-combined;
+///   4. slabs are scattered into the sparse tree; voxels with -interiorWidth < d/h < exteriorWidth
+///      become active; signed flood fill.
+///
+/// What is exact: every active voxel holds the exact distance (double, stored as float) to a
+/// triangle whose shell covers it, and the min over those triangles. Where the voxel is covered
+/// by the shell of its true closest triangle — always with ShellCoverage::Complete (the default),
+/// where every shell contains the whole eps-neighbourhood of its face — the value and sign equal
+/// ExactReference and meshToLevelSet (Chang), and no voxel of the band is missing. With
+/// ShellCoverage::Paper the pseudonormal-family shells (PseudoNormal, Thin, Offset) are the paper's
+/// hulls, and voxels near |d| = eps outside the shell of their closest triangle may be missing or
+/// hold a larger distance — and then the sign — of a neighbour (see TetrahedralShell.h and
+/// docs/scan-conversion.md). Sign: pseudonormal rule of the closest feature, so with Obb there are
+/// no plane-test or construction leaks (§2) on closed, consistently oriented meshes; a fold
+/// (flipped triangle) is wrong by construction of its pseudonormals — there is no fix in the paper.
+/// Results do not depend on the number of threads.
 #pragma once
 
+#include <levelforge/core/GridSpec.h>
 #include <levelforge/scan/DenseSlab.h>
 #include <levelforge/scan/TetrahedralShell.h>
 #include <levelforge/core/TriangleMesh.h>
@@ -44,21 +47,15 @@
 
 namespace levelforge {
 
-struct TetScanOptions
+/// Options of meshToLevelSetScan(). GridSpec gives the voxel size or count, the band widths
+/// (voxels or world units; rounded to float after conversion to voxels), the grid name, the
+/// voxel budget (estimate: surface area in voxels² × band width, as meshToLevelSet; it also
+/// bounds the rasterization work) and the interrupter.
+struct TetScanOptions : GridSpec
 {
-    /// Voxel edge length, world units. If <= 0 (default) it is derived from voxelCount.
-    double voxelSize = 0.0;
-    /// Voxels along the longest axis of the mesh bounding box; used when voxelSize <= 0.
-    int voxelCount = 0;
-    /// Half-widths of the band outside / inside the surface, in voxels.
-    float exteriorWidth = 3.0f;
-    float interiorWidth = 3.0f;
     ShellMethod shell = ShellMethod::Obb;
     /// Complete (default): every shell covers the eps band (exact result); Paper: the paper's hulls.
     ShellCoverage coverage = ShellCoverage::Complete;
-    /// Refuse meshes whose band would hold more voxels than this (estimate: surface area in
-    /// voxels² × band width, as meshToLevelSet); also bounds the rasterization work. 0 = no limit.
-    uint64_t maxVoxels = 2'000'000'000ull;
     /// Slab size in voxels: z planes per slab and xy edge, multiples of 8 (VDB leaf aligned).
     int slabDepth = 8;
     int slabWidth = 32;
@@ -72,8 +69,6 @@ struct TetScanOptions
     bool conservative = false;
     /// Backend that fills the slabs; nullptr: a CpuSlabBackend. Not owned.
     const SlabBackend* backend = nullptr;
-    std::string gridName = "surface";
-    openvdb::util::NullInterrupter* interrupter = nullptr;
 };
 
 /// Counters in the spirit of the paper's Figures 20–28.
@@ -115,15 +110,5 @@ private:
 /// InterruptedError (polled per slab, from inside the parallel loops).
 openvdb::FloatGrid::Ptr meshToLevelSetScan(const TriangleMesh& mesh, const TetScanOptions& options = {},
                                            TetScanStats* stats = nullptr);
-
-namespace scan_internal {
-/// Cross-section of a tetrahedron with the plane z (§3.1, cases A, B, C). Returns the number of
-/// polygon vertices written to (x, y): 0 if the plane misses, 3 or 4 otherwise (some may
-/// coincide when the plane passes through a corner).
-int sliceTetrahedron(const Tetrahedron& tet, double z, double* x, double* y);
-/// Conservative footprint of a tetrahedron on plane z (see TetScanOptions::conservative):
-/// convex polygon (up to 16 vertices) written to cs.x/cs.y/cs.count; false if empty.
-bool conservativeFootprint(const Tetrahedron& tet, int z, CrossSection& cs);
-} // namespace scan_internal
 
 } // namespace levelforge

@@ -1,52 +1,54 @@
-// levelforge — tetrahedral shells around the faces of a triangle mesh (T4 scan conversion).
-//
-// Paper: K. Erleben, H. Dohlmann, "Scan Conversion of Signed Distance Fields"
-// (../shared/papers/001_*). Every triangle is enclosed in a bounded volume made only of
-// tetrahedra, each tagged with its source triangle; TetScanConversion.h slices them with z-planes
-// and evaluates the exact distance to the source triangle at every covered voxel centre.
-//
-// Four shell generators, for a narrow-band width eps (same units as the mesh points):
-//   PseudoNormal (§3.3) the 6 points p_i ± eps * n_i (n_i: unit angle-weighted vertex
-//                pseudonormals) → convex hull → one tetrahedron from the hull centre to each hull
-//                triangle.
-//   Thin (§3.4)  as PseudoNormal, but the inward and outward extrusion lengths are limited to the
-//                smallest positive root of the constraint system Eq. 6–11 (no swallow tail):
-//                length = min(eps, root).
-//   Offset (§3.4, "face-offsetting") the 12 points p_i ± eps * n_i and p_i ± eps * n_face.
-//   Obb (§3.5)   rectangle on the longest edge and the height, enlarged by eps in the face plane,
-//                extruded ± eps along the face normal → 5 tetrahedra.
-//
-// Coverage (what is exact, what is not). Call N_eps(T) the set of points within eps of triangle T.
-//   * Obb contains N_eps(T) completely (T lies in the rectangle R, so a point within eps of T is
-//     within eps of R in each frame coordinate).
-//   * The paper's PseudoNormal, Thin and Offset hulls do NOT contain N_eps(T) in general: near
-//     vertices and edges the eps-ball bulges beyond the chords of the hull, and Thin shortens the
-//     extrusion below eps wherever the root system demands it. On the other hand every one of
-//     their points is p_i + s * n with |s| <= eps and |n| = 1, i.e. within eps of T, and N_eps(T)
-//     is convex, so each of these hulls lies INSIDE N_eps(T).
-//   * ShellCoverage::Complete (the default) therefore completes them to the eps-prism of the face
-//     (epsilonPrism below): the hexagon bounded by the three edge lines offset by eps in the face
-//     plane and by three bevel lines at distance eps from the vertices, perpendicular to the
-//     bisector of the vertex's two outward edge normals, extruded +-eps along the face normal.
-//     Each of the 6 half-planes (x) the slab contains N_eps(T) (the support of T + disc(eps) in an
-//     edge normal is that edge's offset; in a direction of a vertex's normal cone, the vertex's),
-//     so the prism contains N_eps(T), and it contains the paper hull because N_eps(T) does: the
-//     completion hull(paper points + prism) IS the prism, and the three completed shells
-//     coincide. The prism is the ball's circumscribed cylinder swept along T: for an equilateral
-//     face of edge 1 voxel at eps = 3 voxels it holds 244 voxel volumes (N_eps(T): 158, Obb: 288),
-//     for edge 10 voxels 987 (N_eps(T): 797, Obb: 1407). With Complete every voxel centre of the eps band is covered by the shell of its
-//     closest triangle whatever the shell, so the scan-converted band is exact; aliasing does not
-//     arise because coverage is a property of the voxel centres themselves (the rasterizer tests
-//     centres, with a 1e-7-voxel tolerance for round-off).
-//   * ShellCoverage::Paper keeps the paper's hulls as they are (for comparison with its Figures
-//     20–28): voxels they miss are either absent or hold the distance to another (farther)
-//     triangle that covers them. TestTetScanConversion measures both; docs/scan-conversion.md
-//     reports the numbers.
-//
-// Convex hulls of <= 12 points are computed here by hand (exhaustive facet test, O(n^4) with
-// n <= 12, exact up to a relative tolerance), coplanar facets fan-triangulated once, so no
-// external hull library is needed; TestTetrahedralShell checks the hull against brute force
-// containment tests.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Tetrahedral shells around the faces of a triangle mesh (T4 scan conversion).
+///
+/// Paper: K. Erleben, H. Dohlmann, "Scan Conversion of Signed Distance Fields".
+/// Every triangle is enclosed in a bounded volume made only of
+/// tetrahedra, each tagged with its source triangle; TetScanConversion.h slices them with z-planes
+/// and evaluates the exact distance to the source triangle at every covered voxel centre.
+///
+/// Four shell generators, for a narrow-band width eps (same units as the mesh points):
+///   PseudoNormal (§3.3) the 6 points p_i ± eps * n_i (n_i: unit angle-weighted vertex
+///                pseudonormals) → convex hull → one tetrahedron from the hull centre to each hull
+///                triangle.
+///   Thin (§3.4)  as PseudoNormal, but the inward and outward extrusion lengths are limited to the
+///                smallest positive root of the constraint system Eq. 6–11 (no swallow tail):
+///                length = min(eps, root).
+///   Offset (§3.4, "face-offsetting") the 12 points p_i ± eps * n_i and p_i ± eps * n_face.
+///   Obb (§3.5)   rectangle on the longest edge and the height, enlarged by eps in the face plane,
+///                extruded ± eps along the face normal → 5 tetrahedra.
+///
+/// Coverage (what is exact, what is not). Call N_eps(T) the set of points within eps of triangle T.
+///   * Obb contains N_eps(T) completely (T lies in the rectangle R, so a point within eps of T is
+///     within eps of R in each frame coordinate).
+///   * The paper's PseudoNormal, Thin and Offset hulls do NOT contain N_eps(T) in general: near
+///     vertices and edges the eps-ball bulges beyond the chords of the hull, and Thin shortens the
+///     extrusion below eps wherever the root system demands it. On the other hand every one of
+///     their points is p_i + s * n with |s| <= eps and |n| = 1, i.e. within eps of T, and N_eps(T)
+///     is convex, so each of these hulls lies INSIDE N_eps(T).
+///   * ShellCoverage::Complete (the default) therefore completes them to the eps-prism of the face
+///     (epsilonPrism below): the hexagon bounded by the three edge lines offset by eps in the face
+///     plane and by three bevel lines at distance eps from the vertices, perpendicular to the
+///     bisector of the vertex's two outward edge normals, extruded +-eps along the face normal.
+///     Each of the 6 half-planes (x) the slab contains N_eps(T) (the support of T + disc(eps) in an
+///     edge normal is that edge's offset; in a direction of a vertex's normal cone, the vertex's),
+///     so the prism contains N_eps(T), and it contains the paper hull because N_eps(T) does: the
+///     completion hull(paper points + prism) IS the prism, and the three completed shells
+///     coincide. The prism is the ball's circumscribed cylinder swept along T: for an equilateral
+///     face of edge 1 voxel at eps = 3 voxels it holds 244 voxel volumes (N_eps(T): 158, Obb: 288),
+///     for edge 10 voxels 987 (N_eps(T): 797, Obb: 1407). With Complete every voxel centre of the eps band is covered by the shell of its
+///     closest triangle whatever the shell, so the scan-converted band is exact; aliasing does not
+///     arise because coverage is a property of the voxel centres themselves (the rasterizer tests
+///     centres, with a 1e-7-voxel tolerance for round-off).
+///   * ShellCoverage::Paper keeps the paper's hulls as they are (for comparison with its Figures
+///     20–28): voxels they miss are either absent or hold the distance to another (farther)
+///     triangle that covers them. TestTetScanConversion measures both; docs/scan-conversion.md
+///     reports the numbers.
+///
+/// Convex hulls of <= 12 points are computed here by hand (exhaustive facet test, O(n^4) with
+/// n <= 12, exact up to a relative tolerance), coplanar facets fan-triangulated once, so no
+/// external hull library is needed; TestTetrahedralShell checks the hull against brute force
+/// containment tests.
 #pragma once
 
 #include <levelforge/core/PseudoNormals.h>
@@ -107,34 +109,4 @@ std::vector<Tetrahedron> buildTetrahedralShell(const TriangleMesh& mesh, const P
                                                const TetrahedralShellOptions& options,
                                                TetrahedralShellStats* stats = nullptr);
 
-namespace shell_internal {
-
-/// Triangles of the convex hull of `points` (n <= 64; intended for n <= 12), as index triples.
-/// Coplanar facets are fan-triangulated once. Duplicate points are tolerated. Empty result if the
-/// points are (nearly) coplanar.
-std::vector<std::array<int, 3>> convexHull(const std::vector<Vec3d>& points);
-
-/// Tetrahedra from the centre of the hull of `points` to each hull triangle (appended to out).
-void hullTetrahedra(const std::vector<Vec3d>& points, uint32_t triangle, std::vector<Tetrahedron>& out);
-
-/// Smallest positive root of the system Eq. 11 for the prism q_i = p_i + sigma * eps * n_i
-/// (sigma = -1: inward, +1: outward); +infinity if there is none.
-double thinShellExtrusionLimit(const std::array<Vec3d, 3>& p, const std::array<Vec3d, 3>& n, double sigma);
-
-/// The eight corners of the Obb shell (bit 0: along the longest edge, bit 1: along the height,
-/// bit 2: along the normal) and its 5-tetrahedron decomposition.
-std::array<Vec3d, 8> obbCorners(const Vec3d& a, const Vec3d& b, const Vec3d& c, double eps);
-void obbTetrahedra(const std::array<Vec3d, 8>& corners, uint32_t triangle, std::vector<Tetrahedron>& out);
-
-/// The 12 corners of the eps-prism of triangle (a, b, c) (see the file comment): corners 0–5 are
-/// the hexagon at -eps along the face normal, in order around it, 6–11 the same at +eps.
-std::array<Vec3d, 12> epsilonPrism(const Vec3d& a, const Vec3d& b, const Vec3d& c, double eps);
-/// 12 tetrahedra whose union is the prism (4 triangular prisms of a fan, 3 tetrahedra each);
-/// zero-volume ones are dropped.
-void prismTetrahedra(const std::array<Vec3d, 12>& corners, uint32_t triangle, std::vector<Tetrahedron>& out);
-
-/// Unsigned volume of a tetrahedron.
-double volume(const Tetrahedron& t);
-
-} // namespace shell_internal
 } // namespace levelforge

@@ -1,35 +1,37 @@
-// levelforge — a scalar VDB grid (fog, density, CT/MRI stored sparsely, another tool's level set)
-// to a signed distance level set without ever allocating its dense bounding box.
-//
-// Paper: R. Satherley, M. W. Jones, "Vector-City Vector Distance Transform", CVIU 82 (2001):
-// §4.1–4.2 (the sub-voxel accurate shell: each cell of 8 samples split into 6 tetrahedra, the
-// interpolated iso-surface as 1–2 triangles per tetrahedron, exact closest-point vectors in a
-// shell around it) and §4.3 (the shell propagated by the 8-pass VCVDT), here on VDB topology:
-//
-//  1. cells: the cells (8 samples) whose corners lie on both sides of the iso-value are found
-//     among the leaves of the input tree and along the faces of its tiles whose side differs from
-//     the background's (nowhere else can a constant tree region hold a crossing), one voxel
-//     dilated; their triangles are the interpolated surface (src/IsoSurfaceCells.h, the same
-//     triangulation as the dense SubvoxelShell.h), a triangle soup in index space × voxel size;
-//  2. exact shell: the exact distance to that surface in a band of 1.5 voxels (VCVDT8; the dense
-//     path's shell R is the 26-neighbourhood of the surface voxels, the same reach) with the
-//     exact closest points and triangles (meshToLevelSetWithClosestPoints, Chang et al. 2008,
-//     on the sparse triangle lists), each voxel signed by its own sample's side of the iso-value
-//     (the voxel centres are the samples, so this is the inside flag of Eq. 2 — no pseudonormal
-//     is trusted on the unoriented soup), re-flood-filled;
-//  3. widening: to the requested widths with the sparse 8-pass VCVDT over the dilated VDB
-//     topology (VectorExpansion.h, through expandLevelSet with ExpansionMethod::Vector and the
-//     exact closest points and triangles of step 2). With VolumeDistanceMethod::Exact the exact
-//     band of step 2 already has the requested widths and step 3 is skipped.
-//
-// What is exact and what is approximate: the surface is the piecewise-linear interpolation of the
-// samples (as in the dense sub-voxel path); distances to it are exact (double, stored as float)
-// in the exact band and, with Exact, everywhere; beyond the exact band the VCVDT values are
-// distances to a point of the surface (never below the exact distance) refined to the exact
-// distance to a nearby triangle (VectorExpansion.h: mean < 1e-3 voxel, max < 0.1 voxel in the
-// tests). Signs are the samples' inside flags. Memory follows the band (plus the triangle soup of
-// the surface), not the bounding box: a grid with a 10⁵-voxel-wide empty gap converts like a
-// compact one.
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief A scalar VDB grid (fog, density, CT/MRI stored sparsely, another tool's level set)
+/// to a signed distance level set without ever allocating its dense bounding box.
+///
+/// Paper: R. Satherley, M. W. Jones, "Vector-City Vector Distance Transform", CVIU 82 (2001):
+/// §4.1–4.2 (the sub-voxel accurate shell: each cell of 8 samples split into 6 tetrahedra, the
+/// interpolated iso-surface as 1–2 triangles per tetrahedron, exact closest-point vectors in a
+/// shell around it) and §4.3 (the shell propagated by the 8-pass VCVDT), here on VDB topology:
+///
+///  1. cells: the cells (8 samples) whose corners lie on both sides of the iso-value are found
+///     among the leaves of the input tree and along the faces of its tiles whose side differs from
+///     the background's (nowhere else can a constant tree region hold a crossing), one voxel
+///     dilated; their triangles are the interpolated surface (src/IsoSurfaceCells.h, the same
+///     triangulation as the dense SubvoxelShell.h), a triangle soup in index space × voxel size;
+///  2. exact shell: the exact distance to that surface in a band of 1.5 voxels (VCVDT8; the dense
+///     path's shell R is the 26-neighbourhood of the surface voxels, the same reach) with the
+///     exact closest points and triangles (meshToLevelSetWithClosestPoints, Chang et al. 2008,
+///     on the sparse triangle lists), each voxel signed by its own sample's side of the iso-value
+///     (the voxel centres are the samples, so this is the inside flag of Eq. 2 — no pseudonormal
+///     is trusted on the unoriented soup), re-flood-filled;
+///  3. widening: to the requested widths with the sparse 8-pass VCVDT over the dilated VDB
+///     topology (docs/expansion.md, through expandLevelSet with ExpansionMethod::Vector and the
+///     exact closest points and triangles of step 2). With VolumeDistanceMethod::Exact the exact
+///     band of step 2 already has the requested widths and step 3 is skipped.
+///
+/// What is exact and what is approximate: the surface is the piecewise-linear interpolation of the
+/// samples (as in the dense sub-voxel path); distances to it are exact (double, stored as float)
+/// in the exact band and, with Exact, everywhere; beyond the exact band the VCVDT values are
+/// distances to a point of the surface (never below the exact distance) refined to the exact
+/// distance to a nearby triangle (docs/expansion.md: mean < 1e-3 voxel, max < 0.1 voxel in the
+/// tests). Signs are the samples' inside flags. Memory follows the band (plus the triangle soup of
+/// the surface), not the bounding box: a grid with a 10⁵-voxel-wide empty gap converts like a
+/// compact one.
 #pragma once
 
 #include <levelforge/mesh/MeshToLevelSet.h>

@@ -1,82 +1,87 @@
-// levelforge — dense vector distance transforms: VCVDT (4 and 8 passes) and Mullikin's EVDT.
-//
-// Paper: R. Satherley and M. W. Jones, "Vector-City Vector Distance Transform", Computer Vision
-// and Image Understanding 82 (2001) — §2.2 (Eq. 8–10), §3 (VCVDT, Fig. 8 and 10), §3.1 (vector
-// storage, Table 4–6), §3.2 (error analysis, Fig. 12 error wake), §4 (sub-voxel shells).
-// EVDT: J. C. Mullikin, "The vector distance transform in two and three dimensions", CVGIP:
-// Graphical Models and Image Processing 54(6), 1992 (3-D extension of Danielsson's 4SSED).
-//
-// Every voxel holds a ClosestVector: the offset, in VOXEL units, from its centre to the closest
-// feature point found so far, together with its squared WORLD length d2 (Leymarie–Levine: the
-// length is kept with the vector and never recomputed for the centre). Propagation (Eq. 9):
-// a pass visits the voxels of a slice in a raster order and, for each voxel p, tries every
-// listed neighbour q = p + o: the candidate vector is V(q) + o (it points from p to q's feature
-// point), and it replaces V(p) when its d2 is strictly smaller. Candidates are tried in the
-// order of the pass table below, so ties keep the earlier one — the result is fully determined.
-// d2 = X*X + (Y*Y + Z*Z) with X = x*sx, Y = y*sy, Z = z*sz in single precision (spacing in
-// world units), so anisotropic voxels are handled exactly as Euclidean world distance.
-//
-// The pass masks of the paper's figures are not in our copy of the text; the tables below
-// (vector_transform_internal) are OUR READING of §2.2/§3 and define the methods:
-//  - VCVDT4 (Fig. 8): forward sweep z = 0..nz-1, per slice F1 (rows y+, x+; neighbours
-//    (0,0,-1), (0,-1,0), (-1,0,0)) then F2 over the same slice (rows y-, x-; (0,+1,0), (+1,0,0));
-//    backward sweep z = nz-1..0, B1 (y-, x-; (0,0,+1), (0,+1,0), (+1,0,0)) then B2 (y+, x+;
-//    (0,-1,0), (-1,0,0)). F1 and B1 are the two city-block chamfer passes; the vertical
-//    neighbour is checked once per sweep.
-//  - VCVDT8 (Fig. 10, like Ragnemalm's corner EDT): the same sweeps, four in-slice passes from
-//    the four corners: P1 (y+, x+; vertical, (0,-1,0), (-1,0,0)), P2 (y+, x-; (0,-1,0), (+1,0,0)),
-//    P3 (y-, x-; (0,+1,0), (+1,0,0)), P4 (y-, x+; (0,+1,0), (-1,0,0)); vertical = (0,0,-1) in the
-//    forward sweep and (0,0,+1) in the backward sweep, checked only in P1.
-//  - EVDT (Fig. 7, Mullikin's six passes): forward sweep, per slice F1 (y+, x+; (0,0,-1),
-//    (0,-1,0), (-1,0,0)) with F2 (x-; (+1,0,0)) run on each row right after F1 has finished it
-//    (Danielsson's 4SSED forward scan), then F3 (y-, x-; (0,+1,0), (+1,0,0)); backward sweep
-//    B1 (y-, x-; (0,0,+1), (0,+1,0), (+1,0,0)) with B2 (x+; (-1,0,0)) after each row, then
-//    B3 (y+, x+; (0,-1,0), (-1,0,0)).
-//    EVDT keeps vectors for two slices only (Mullikin's memory saving): the forward sweep and the
-//    backward sweep each start from the input vectors, each holds the current and the previous
-//    slice, and the result is the shorter of the two per voxel. "If the forward and backward
-//    passes are computed separately, the two implementations produce identical distance
-//    fields" (§3.1): this is that separate computation, and it reproduces the error wake of
-//    §3.2 / Fig. 12 (the backward sweep never sees the forward sweep's vectors).
-//    EVDTFullGrid runs the same six passes in place on the complete vector grid.
-//
-// What is exact and what is approximate: every output vector points to a real seed point
-// (a feature voxel centre or a sub-voxel seed), so distances never underestimate the distance
-// to the seed set; they overestimate where a voxel's closest seed cannot be reached through
-// the masks (Voronoi-corner configurations, Eq. 11; one-voxel-thin diagonal Voronoi tiles that
-// the 4-neighbour passes cannot enter; the two-slice wake). Measured on the 80^3 sphere
-// (docs/benchmarks.md, "Distance transforms on dense volumes"): average error per voxel 0.0007 (VCVDT8), 0.0008 (EVDT full grid),
-// 0.0017 (EVDT), 0.0022 (VCVDT4); VCVDT8 errors within +-0.27 voxel. For exact distances to
-// feature voxel centres use exactDistanceTransform() (ExactDistanceTransform.h).
-//
-// Sub-voxel seeds (§4): vectorDistanceTransform() propagates whatever vectors are set, so a
-// shell of closest-surface-point vectors (fractional, voxel units) propagates like binary
-// features. Unknown voxels hold x = y = z = d2 = +inf; voxels no seed can reach stay +inf.
-//
-// Implementation (none of it changes a bit of the result; test MatchesALiteralReadingOfThePassTables
-// compares with the tables read literally): while it runs, the transform keeps each row in
-// groups of 8 voxels along x (x[8], y[8], z[8], d2[8], in place in the same bytes; a row is
-// regrouped when the forward sweep first reads it and restored when the backward sweep has read
-// it for the last time, also on interruption). A pass on a row is split into the element-wise
-// candidates (vertical and previous row: 8 voxels per SIMD step) and the in-row chain (the
-// previous voxel, sequential). x86-64 CPUs with AVX2 run an AVX2 build of the same code (no FMA:
-// bit-identical).
-//
-// From a mask, vectorDistanceTransform(const MaskVolume&) gives the distances in one go, bit for
-// bit as the vector-volume route, without building the vector volume: the passes run on two
-// slice buffers that stay in cache and only a 16-bit integer vector per voxel (6 bytes) is kept
-// between the sweeps; d2 is recomputed with the passes' own formula on the way back.
-//
-// Parallelism: each in-slice pass is a 2-D raster with dependencies on x-1 and y-1 (in pass
-// order). Lanes (plain std::thread) own COLUMNS: lane t runs every pass of every slice on its
-// x-range, whose previous rows and previous slices are its own; only the in-row chain crosses
-// into the next lane's range, one vector per row and pass, published with an atomic progress
-// counter. Every voxel therefore sees exactly the values of the serial order: results are
-// bit-identical for any lane count (T = the TBB arena's concurrency, capped by
-// tbb::global_control). The lanes wait for each other about once per slice (where the x order
-// of the passes reverses); lanes are real threads, not TBB tasks, so the waits cannot deadlock.
-// EVDT's row-interleaved passes (F2/B2) leave nothing to split; EVDT and EVDTFullGrid run on one
-// lane. Measured in docs/benchmarks.md ("Distance transforms on dense volumes").
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Dense vector distance transforms: VCVDT (4 and 8 passes) of Satherley & Jones and
+///        Mullikin's EVDT (two-slice and full-grid), on a vector volume or from a binary mask.
+///
+/// Paper: R. Satherley and M. W. Jones, "Vector-City Vector Distance Transform", Computer Vision
+/// and Image Understanding 82 (2001) — §2.2 (Eq. 8–10), §3 (VCVDT, Fig. 8 and 10), §3.1 (vector
+/// storage, Table 4–6), §3.2 (error analysis, Fig. 12 error wake), §4 (sub-voxel shells).
+/// EVDT: J. C. Mullikin, "The vector distance transform in two and three dimensions", CVGIP:
+/// Graphical Models and Image Processing 54(6), 1992 (3-D extension of Danielsson's 4SSED).
+///
+/// Every voxel holds a ClosestVector: the offset, in VOXEL units, from its centre to the closest
+/// feature point found so far, together with its squared WORLD length d2 (Leymarie–Levine: the
+/// length is kept with the vector and never recomputed for the centre). Propagation (Eq. 9):
+/// a pass visits the voxels of a slice in a raster order and, for each voxel p, tries every
+/// listed neighbour q = p + o: the candidate vector is V(q) + o (it points from p to q's feature
+/// point), and it replaces V(p) when its d2 is strictly smaller. Candidates are tried in the
+/// order of the pass table below, so ties keep the earlier one — the result is fully determined.
+/// d2 = X*X + (Y*Y + Z*Z) with X = x*sx, Y = y*sy, Z = z*sz in single precision (spacing in
+/// world units), so anisotropic voxels are handled exactly as Euclidean world distance.
+///
+/// The pass masks of the paper's figures are not in our copy of the text; the pass tables listed
+/// here are OUR READING of §2.2/§3 and define the methods (the implementation holds them as
+/// constant tables and checks at compile time that each has the shape its row kernel runs):
+///  - VCVDT4 (Fig. 8): forward sweep z = 0..nz-1, per slice F1 (rows y+, x+; neighbours
+///    (0,0,-1), (0,-1,0), (-1,0,0)) then F2 over the same slice (rows y-, x-; (0,+1,0), (+1,0,0));
+///    backward sweep z = nz-1..0, B1 (y-, x-; (0,0,+1), (0,+1,0), (+1,0,0)) then B2 (y+, x+;
+///    (0,-1,0), (-1,0,0)). F1 and B1 are the two city-block chamfer passes; the vertical
+///    neighbour is checked once per sweep.
+///  - VCVDT8 (Fig. 10, like Ragnemalm's corner EDT): the same sweeps, four in-slice passes from
+///    the four corners: P1 (y+, x+; vertical, (0,-1,0), (-1,0,0)), P2 (y+, x-; (0,-1,0), (+1,0,0)),
+///    P3 (y-, x-; (0,+1,0), (+1,0,0)), P4 (y-, x+; (0,+1,0), (-1,0,0)); vertical = (0,0,-1) in the
+///    forward sweep and (0,0,+1) in the backward sweep, checked only in P1.
+///  - EVDT (Fig. 7, Mullikin's six passes): forward sweep, per slice F1 (y+, x+; (0,0,-1),
+///    (0,-1,0), (-1,0,0)) with F2 (x-; (+1,0,0)) run on each row right after F1 has finished it
+///    (Danielsson's 4SSED forward scan), then F3 (y-, x-; (0,+1,0), (+1,0,0)); backward sweep
+///    B1 (y-, x-; (0,0,+1), (0,+1,0), (+1,0,0)) with B2 (x+; (-1,0,0)) after each row, then
+///    B3 (y+, x+; (0,-1,0), (-1,0,0)).
+///    EVDT keeps vectors for two slices only (Mullikin's memory saving): the forward sweep and the
+///    backward sweep each start from the input vectors, each holds the current and the previous
+///    slice, and the result is the shorter of the two per voxel. "If the forward and backward
+///    passes are computed separately, the two implementations produce identical distance
+///    fields" (§3.1): this is that separate computation, and it reproduces the error wake of
+///    §3.2 / Fig. 12 (the backward sweep never sees the forward sweep's vectors).
+///    EVDTFullGrid runs the same six passes in place on the complete vector grid.
+///
+/// What is exact and what is approximate: every output vector points to a real seed point
+/// (a feature voxel centre or a sub-voxel seed), so distances never underestimate the distance
+/// to the seed set; they overestimate where a voxel's closest seed cannot be reached through
+/// the masks (Voronoi-corner configurations, Eq. 11; one-voxel-thin diagonal Voronoi tiles that
+/// the 4-neighbour passes cannot enter; the two-slice wake). Measured on the 80^3 sphere
+/// (docs/benchmarks.md, "Volume distance transforms"): average error per voxel 0.0007
+/// (VCVDT8), 0.0008 (EVDT full grid), 0.0017 (EVDT), 0.0022 (VCVDT4); VCVDT8 errors within
+/// +-0.27 voxel. For exact distances to
+/// feature voxel centres use exactDistanceTransform() (ExactDistanceTransform.h).
+///
+/// Sub-voxel seeds (§4): vectorDistanceTransform() propagates whatever vectors are set, so a
+/// shell of closest-surface-point vectors (fractional, voxel units) propagates like binary
+/// features. Unknown voxels hold x = y = z = d2 = +inf; voxels no seed can reach stay +inf.
+///
+/// Implementation (none of it changes a bit of the result; the test
+/// MatchesALiteralReadingOfThePassTables compares with the tables read literally): while it runs, the transform keeps each row in
+/// groups of 8 voxels along x (x[8], y[8], z[8], d2[8], in place in the same bytes; a row is
+/// regrouped when the forward sweep first reads it and restored when the backward sweep has read
+/// it for the last time, also on interruption). A pass on a row is split into the element-wise
+/// candidates (vertical and previous row: 8 voxels per SIMD step) and the in-row chain (the
+/// previous voxel, sequential). x86-64 CPUs with AVX2 run an AVX2 build of the same code (no FMA:
+/// bit-identical).
+///
+/// From a mask, vectorDistanceTransform(const MaskVolume&) gives the distances in one go, bit for
+/// bit as the vector-volume route, without building the vector volume: the passes run on two
+/// slice buffers that stay in cache and only a 16-bit integer vector per voxel (6 bytes) is kept
+/// between the sweeps; d2 is recomputed with the passes' own formula on the way back.
+///
+/// Parallelism: each in-slice pass is a 2-D raster with dependencies on x-1 and y-1 (in pass
+/// order). Lanes (plain std::thread) own COLUMNS: lane t runs every pass of every slice on its
+/// x-range, whose previous rows and previous slices are its own; only the in-row chain crosses
+/// into the next lane's range, one vector per row and pass, published with an atomic progress
+/// counter. Every voxel therefore sees exactly the values of the serial order: results are
+/// bit-identical for any lane count (T = the TBB arena's concurrency, capped by
+/// tbb::global_control). The lanes wait for each other about once per slice (where the x order
+/// of the passes reverses); lanes are real threads, not TBB tasks, so the waits cannot deadlock.
+/// EVDT's row-interleaved passes (F2/B2) leave nothing to split; EVDT and EVDTFullGrid run on one
+/// lane. Measured in docs/benchmarks.md ("Volume distance transforms").
 #pragma once
 
 #include <levelforge/core/DenseVolume.h>
@@ -84,7 +89,6 @@
 #include <openvdb/util/NullInterrupter.h>
 
 #include <cstdint>
-#include <functional>
 
 namespace levelforge {
 
@@ -97,8 +101,10 @@ struct ClosestVector
 };
 static_assert(sizeof(ClosestVector) == 16, "ClosestVector must stay 16 bytes");
 
+/// A dense volume of closest vectors (the state the vector transforms propagate).
 using VectorVolume = DenseVolume<ClosestVector>;
 
+/// The vector transforms (see the file comment for their pass tables).
 enum class VectorTransformMethod
 {
     EVDT,          ///< Mullikin's six passes, two vector slices (forward and backward sweeps separate)
@@ -107,24 +113,29 @@ enum class VectorTransformMethod
     VCVDT8         ///< vector-city VDT, eight passes (Fig. 10), the most accurate
 };
 
-/// "EVDT", "EVDTFullGrid", "VCVDT4", "VCVDT8".
+/// @brief The display name of a method.
+/// @param[in] method  a vector transform method
+/// @return "EVDT", "EVDTFullGrid", "VCVDT4" or "VCVDT8" ("unknown" for a value outside the enum).
 const char* vectorTransformMethodName(VectorTransformMethod method);
 
+/// Options of vectorDistanceTransform().
 struct VectorTransformOptions
 {
+    /// The pass tables to run.
     VectorTransformMethod method = VectorTransformMethod::VCVDT8;
     /// Optional interruption (checked at the start of every slice of each sweep); not owned.
     openvdb::util::NullInterrupter* interrupter = nullptr;
     /// Lanes (threads). 1 (default) = serial; 0 = automatic (the TBB concurrency, capped by
     /// tbb::global_control, when a slice has at least 128 x 128 voxels, else 1); n > 1 = at most
     /// n (and at most one lane per 32 columns). The result does not depend on it. Serial is the
-    /// default because the gain is modest and not guaranteed: on idle cores of our 2-core
+    /// default because the gain is modest and not guaranteed: on the idle cores of a 2-core
     /// machine 2 lanes ran 1.0-1.5x as fast as 1 (about 1.1-1.2x in most runs; the lanes wait
     /// for each other where a pass reverses the x order) and up to 1.2x slower when another
-    /// process held a core (docs/benchmarks.md, "Distance transforms on dense volumes").
+    /// process held a core (docs/benchmarks.md, "Volume distance transforms").
     int threads = 1;
 };
 
+/// What a vector transform did.
 struct VectorTransformStats
 {
     double seconds = 0;        ///< wall time of the propagation
@@ -133,155 +144,63 @@ struct VectorTransformStats
     uint64_t unreached = 0;    ///< voxels still +inf on output (no seed at all)
     int passesPerVoxel = 0;    ///< in-slice passes that visit each voxel (4, 6 or 8)
     int lanes = 1;             ///< lanes (threads) that ran the passes
+    /// Voxels per second of wall time (0 when no time was measured).
     double voxelsPerSecond() const { return seconds > 0 ? double(voxels) / seconds : 0.0; }
 };
 
-/// Eq. 8: (0,0,0,0) at feature voxels (mask != 0), +inf elsewhere. Same dims, spacing, origin.
-/// Throws InvalidArgumentError for an empty volume, bad spacing or a data/dims size mismatch.
+/// @brief The seed vectors of a binary volume (Eq. 8).
+/// @param[in] features  feature voxels (mask != 0)
+/// @return (0,0,0,0) at feature voxels, +inf elsewhere; same dims, spacing, origin.
+/// @throws InvalidArgumentError for an empty volume, bad spacing or a data/dims size mismatch.
 VectorVolume initVectorVolume(const MaskVolume& features);
 
-/// Propagates the vectors in place with the chosen method (see the file comment). Every finite
-/// input vector is a seed; its d2 must be its squared world length (as initVectorVolume() and
-/// the shell builders set it). Throws InvalidArgumentError (empty volume, spacing <= 0 or NaN,
-/// data size != dims) or InterruptedError (the volume is then partially propagated).
+/// @brief Propagates the vectors in place with the chosen method (see the file comment).
+///
+/// Every finite input vector is a seed; its d2 must be its squared world length (as
+/// initVectorVolume() and the shell builders set it).
+/// @param[in,out] vectors  the seeds on input, the propagated closest vectors on output
+/// @param[in]     options  method, interrupter, lanes
+/// @param[out]    stats    optional: what the transform did
+/// @throws InvalidArgumentError (empty volume, spacing <= 0 or NaN, data size != dims);
+/// @throws InterruptedError (the volume is then partially propagated, in its normal layout).
 void vectorDistanceTransform(VectorVolume& vectors, const VectorTransformOptions& options = {},
                              VectorTransformStats* stats = nullptr);
 
-/// sqrt(d2) per voxel, world units (+inf where unreached). Same dims, spacing, origin.
+/// @brief The lengths of the vectors.
+/// @param[in] vectors  closest vectors (d2 in world units²)
+/// @return sqrt(d2) per voxel, world units (+inf where unreached); same dims, spacing, origin.
+/// @throws InvalidArgumentError for an empty volume, bad spacing or a data/dims size mismatch.
 ScalarVolume vectorLength(const VectorVolume& vectors);
 
-/// Distances in one go: from the feature voxels (mask != 0) of a binary volume to every voxel
-/// centre, in world units (+inf where unreached), by the chosen method. The result is bit for bit
-/// vectorLength() of initVectorVolume() propagated by vectorDistanceTransform() with the same
-/// options, but the 16-byte vector volume is never built: the full-grid methods (VCVDT4, VCVDT8,
-/// EVDTFullGrid) run their passes on two slice buffers that stay in cache and keep only a
-/// 6-byte integer vector per voxel between the sweeps (vectors to voxel centres have integer
-/// components), so they read and write about 17 bytes per voxel instead of about 100, and hold
-/// 10 bytes per voxel instead of 20. (EVDT, and volumes with a dimension above 32767, take the
-/// vector-volume route.) stats->seconds covers the whole call, allocations included. Throws
-/// InvalidArgumentError (empty volume, bad spacing, size mismatch) or InterruptedError.
+/// @brief Distances in one go: from the feature voxels of a binary volume to every voxel
+///        centre, in world units, by the chosen method.
+///
+/// The result is bit for bit vectorLength() of initVectorVolume() propagated by
+/// vectorDistanceTransform() with the same options, but the 16-byte vector volume is never
+/// built: the full-grid methods (VCVDT4, VCVDT8, EVDTFullGrid) run their passes on two slice
+/// buffers that stay in cache and keep only a 6-byte integer vector per voxel between the sweeps
+/// (vectors to voxel centres have integer components), so they read and write about 17 bytes per
+/// voxel instead of about 100, and hold 10 bytes per voxel instead of 20. (EVDT, and volumes with
+/// a dimension above 32767, take the vector-volume route.)
+/// @param[in]  features  feature voxels (mask != 0)
+/// @param[in]  options   method, interrupter, lanes
+/// @param[out] stats     optional: what the transform did; seconds covers the whole call,
+///                       allocations included
+/// @return the distances, world units (+inf where unreached); same dims, spacing, origin.
+/// @throws InvalidArgumentError (empty volume, bad spacing, size mismatch);
+/// @throws InterruptedError.
 ScalarVolume vectorDistanceTransform(const MaskVolume& features, const VectorTransformOptions& options = {},
                                      VectorTransformStats* stats = nullptr);
 
-/// Squared world length of a vector in voxel units, computed exactly as the passes do.
+/// @brief Squared world length of a vector in voxel units, computed exactly as the passes do:
+///        X * X + (Y * Y + Z * Z) in single precision.
+/// @param[in] x, y, z  the vector, voxel units
+/// @param[in] spacing  voxel spacing, world units
+/// @return the squared length, world units².
 inline float vectorLengthSquared(float x, float y, float z, const openvdb::Vec3f& spacing)
 {
     const float X = x * spacing[0], Y = y * spacing[1], Z = z * spacing[2];
     return X * X + (Y * Y + Z * Z);
 }
 
-namespace vector_transform_internal {
-
-/// A neighbour position relative to the visited voxel, in voxels.
-struct Offset
-{
-    int8_t x, y, z;
-};
-
-/// One in-slice pass. Rows are visited in order yOrder (+1: y = 0..ny-1, -1: y = ny-1..0) and
-/// each row in order xOrder. Candidates V(p + o) + o are tried in the listed order (strictly
-/// smaller d2 wins). A pass with perRow = true runs on each row immediately after the previous
-/// pass has finished that row (EVDT's F2/B2), in the previous pass's row order.
-/// Every pass lists at most: the vertical neighbour (0,0,-zOrder), the previous row
-/// (0,-yOrder,0), and last the previous voxel in the row (-xOrder,0,0).
-struct PassDef
-{
-    int8_t yOrder;
-    int8_t xOrder;
-    bool perRow;
-    uint8_t neighbourCount;
-    Offset neighbours[3];
-};
-
-/// A sweep over the slices in order zOrder (+1: z = 0..nz-1), each slice visited by the passes
-/// in order.
-struct SweepDef
-{
-    int8_t zOrder;
-    uint8_t passCount;
-    PassDef passes[4];
-};
-
-struct MethodDef
-{
-    VectorTransformMethod method;
-    bool twoSlices;     ///< sweeps start separately from the input, two slice buffers each
-    SweepDef sweeps[2]; ///< forward, backward
-};
-
-// clang-format off
-inline constexpr MethodDef kVCVDT4 = {VectorTransformMethod::VCVDT4, false, {
-    {+1, 2, {{+1, +1, false, 3, {{0, 0, -1}, {0, -1, 0}, {-1, 0, 0}}},    // F1
-             {-1, -1, false, 2, {{0, +1, 0}, {+1, 0, 0}}}}},              // F2
-    {-1, 2, {{-1, -1, false, 3, {{0, 0, +1}, {0, +1, 0}, {+1, 0, 0}}},    // B1
-             {+1, +1, false, 2, {{0, -1, 0}, {-1, 0, 0}}}}}}};            // B2
-
-inline constexpr MethodDef kVCVDT8 = {VectorTransformMethod::VCVDT8, false, {
-    {+1, 4, {{+1, +1, false, 3, {{0, 0, -1}, {0, -1, 0}, {-1, 0, 0}}},    // P1
-             {+1, -1, false, 2, {{0, -1, 0}, {+1, 0, 0}}},                // P2
-             {-1, -1, false, 2, {{0, +1, 0}, {+1, 0, 0}}},                // P3
-             {-1, +1, false, 2, {{0, +1, 0}, {-1, 0, 0}}}}},              // P4
-    {-1, 4, {{+1, +1, false, 3, {{0, 0, +1}, {0, -1, 0}, {-1, 0, 0}}},    // P1
-             {+1, -1, false, 2, {{0, -1, 0}, {+1, 0, 0}}},                // P2
-             {-1, -1, false, 2, {{0, +1, 0}, {+1, 0, 0}}},                // P3
-             {-1, +1, false, 2, {{0, +1, 0}, {-1, 0, 0}}}}}}};            // P4
-
-inline constexpr SweepDef kEVDTForward =
-    {+1, 3, {{+1, +1, false, 3, {{0, 0, -1}, {0, -1, 0}, {-1, 0, 0}}},    // F1
-             {+1, -1, true,  1, {{+1, 0, 0}}},                            // F2 (after each F1 row)
-             {-1, -1, false, 2, {{0, +1, 0}, {+1, 0, 0}}}}};              // F3
-inline constexpr SweepDef kEVDTBackward =
-    {-1, 3, {{-1, -1, false, 3, {{0, 0, +1}, {0, +1, 0}, {+1, 0, 0}}},    // B1
-             {-1, +1, true,  1, {{-1, 0, 0}}},                            // B2 (after each B1 row)
-             {+1, +1, false, 2, {{0, -1, 0}, {-1, 0, 0}}}}};              // B3
-inline constexpr MethodDef kEVDT = {VectorTransformMethod::EVDT, true, {kEVDTForward, kEVDTBackward}};
-inline constexpr MethodDef kEVDTFullGrid = {VectorTransformMethod::EVDTFullGrid, false,
-                                            {kEVDTForward, kEVDTBackward}};
-// clang-format on
-
-/// The pass table of a method.
-constexpr const MethodDef& methodDef(VectorTransformMethod m)
-{
-    return m == VectorTransformMethod::VCVDT4         ? kVCVDT4
-           : m == VectorTransformMethod::VCVDT8       ? kVCVDT8
-           : m == VectorTransformMethod::EVDTFullGrid ? kEVDTFullGrid
-                                                      : kEVDT;
-}
-
-/// Number of lanes by default (vector and chamfer transforms):
-/// tbb::this_task_arena::max_concurrency(), capped by tbb::global_control's
-/// max_allowed_parallelism; at least 1.
-int defaultLaneCount();
-
-/// A row-pipelined wavefront (used by the chamfer transforms; the vector transforms split columns
-/// instead). Stages run one after another, separated by a barrier; within a stage, rows 0..rows-1 (in the stage's own
-/// order) are dealt to `lanes` std::thread lanes round-robin, each row in x-chunks
-/// 0..chunks-1 (in the stage's x order); chunk c of row r starts only after row r-1 has
-/// finished chunk min(c + lookahead, chunks-1). work(stage, row, chunk) must read only what
-/// that order makes final. beginStage(stage), if set, runs on lane 0 before each stage; when it
-/// returns false the wavefront stops and runRowWavefront returns false. lanes <= 1 runs
-/// serially on the calling thread. Deterministic: the serial raster order is reproduced.
-bool runRowWavefront(int stages, int rows, int chunks, int lookahead, int lanes,
-                     const std::function<void(int stage, int row, int chunk)>& work,
-                     const std::function<bool(int stage)>& beginStage);
-
-/// Chunk count used for rows of `width` voxels with `lanes` lanes.
-int wavefrontChunks(int width, int lanes);
-
-/// Lanes for an nx x ny slice: threads == 1 gives 1; threads > 1 caps defaultLaneCount();
-/// 0 picks defaultLaneCount() when nx * ny >= 128 * 128 (smaller slices do not repay the
-/// per-pass synchronisation), else 1. Never more than ny.
-int laneCountFor(int nx, int ny, int threads);
-
-/// Whether the per-row kernel runs its AVX2 build on this CPU (x86-64 with AVX2). Both builds
-/// perform the same IEEE single-precision operations (the element-wise candidates 8 lanes wide
-/// with AVX2, as two 4-lane halves in the baseline; no FMA), so results are bit-identical; only
-/// the speed differs.
-bool avx2KernelAvailable();
-
-/// Testing hook: false forces the baseline build of the kernel (process-wide; not for use while
-/// a transform runs on another thread).
-void setAvx2KernelEnabled(bool enabled);
-
-} // namespace vector_transform_internal
 } // namespace levelforge

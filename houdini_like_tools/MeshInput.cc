@@ -1,0 +1,19 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "MeshInput.h"
+
+#include <levelforge/reference/MeshShapes.h>
+
+namespace levelforge::ops {
+
+TriangleMesh readMeshInput(const std::string& name, MeshReadInfo* info)
+{
+    if (isBuiltinMeshName(name)) {
+        TriangleMesh mesh = makeBuiltinMesh(name);
+        if (mesh.source.empty()) mesh.source = name;
+        return mesh;
+    }
+    if (info) return readMesh(name, *info);
+    return readMesh(name);
+}
+
+} // namespace levelforge::ops

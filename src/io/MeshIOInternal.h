@@ -1,0 +1,232 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Private to src/io/Mesh*.cc: the shared parsing helpers, the buffered FileReader and
+///        the pre-scan of OBJ / OFF / PLY / STL files. See MeshIO.h for what reading
+///        guarantees; the OpenMesh importer is in MeshImporter.h.
+#pragma once
+
+#include <levelforge/io/MeshIO.h>
+
+#include <levelforge/core/Exceptions.h>
+
+#include "detail/MessageText.h"
+#include "detail/NumberFormat.h"
+#include "io/IoCommon.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cfloat>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <vector>
+
+namespace levelforge {
+
+namespace meshio_internal {
+
+namespace fs = std::filesystem;
+
+using detail::formatDouble;
+using io_internal::kHostBigEndian;
+using io_internal::lowerExtension;
+
+// ------------------------------------------------------------------------------------ helpers
+
+/// "(x, y, z)" in shortest round-trip form.
+std::string formatPoint(const Vec3d& p);
+
+/// Throws InvalidMeshError "<path>: line <line>: <what>" (no line part when line == 0).
+[[noreturn]] void throwInvalid(const std::string& path, uint64_t line, const std::string& what);
+
+inline bool isSpace(char c)
+{
+    return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f';
+}
+
+/// Next whitespace-separated token of @a s (consumed from the front). False when none is left.
+inline bool nextToken(std::string_view& s, std::string_view& tok)
+{
+    size_t i = 0;
+    while (i < s.size() && isSpace(s[i])) ++i;
+    if (i == s.size()) {
+        s = {};
+        return false;
+    }
+    size_t j = i;
+    while (j < s.size() && !isSpace(s[j])) ++j;
+    tok = s.substr(i, j - i);
+    s.remove_prefix(j);
+    return true;
+}
+
+inline std::string_view trimmed(std::string_view s)
+{
+    while (!s.empty() && isSpace(s.front())) s.remove_prefix(1);
+    while (!s.empty() && isSpace(s.back())) s.remove_suffix(1);
+    return s;
+}
+
+enum class NumberStatus { Ok, NotANumber, NonFinite, OutOfFloatRange };
+
+/// Parses a whole token as a coordinate. OpenMesh hands coordinates over as float, so values
+/// beyond the float range are as bad as Inf.
+inline NumberStatus parseCoordinate(std::string_view tok, double& v)
+{
+    const char* b = tok.data();
+    const char* e = b + tok.size();
+    if (b != e && *b == '+') ++b;
+    const auto r = std::from_chars(b, e, v, std::chars_format::general);
+    if (r.ec == std::errc::result_out_of_range && r.ptr == e) {
+        // Underflow reads as zero (as strtod does); overflow is out of range.
+        const bool underflow = tok.find("e-") != std::string_view::npos ||
+                               tok.find("E-") != std::string_view::npos;
+        if (!underflow) return NumberStatus::OutOfFloatRange;
+        v = 0.0;
+        return NumberStatus::Ok;
+    }
+    if (r.ec != std::errc() || r.ptr != e) return NumberStatus::NotANumber;
+    if (!std::isfinite(v)) return NumberStatus::NonFinite;
+    if (std::abs(v) > double(FLT_MAX)) return NumberStatus::OutOfFloatRange;
+    return NumberStatus::Ok;
+}
+
+/// Text of a coordinate problem: "cannot parse coordinate 'x'", "non-finite coordinate ...".
+std::string describeCoordinateProblem(NumberStatus st, std::string_view tok);
+
+/// Parses a whole token as an integer.
+template<typename IntT>
+bool parseInteger(std::string_view tok, IntT& v)
+{
+    const char* b = tok.data();
+    const char* e = b + tok.size();
+    if (b != e && *b == '+') ++b;
+    const auto r = std::from_chars(b, e, v);
+    return r.ec == std::errc() && r.ptr == e;
+}
+
+// ------------------------------------------------------------------------------- FileReader
+
+/// Buffered reading of lines and raw bytes from a file, without per-line allocation.
+class FileReader
+{
+public:
+    /// Opens @a path. Throws IoError when it cannot be opened.
+    explicit FileReader(const std::string& path);
+    ~FileReader();
+    FileReader(const FileReader&) = delete;
+    FileReader& operator=(const FileReader&) = delete;
+
+    /// Next line without its '\n' (a '\r' before it is kept; callers treat it as space).
+    /// The view is valid until the next call. False at the end of the file.
+    bool nextLine(std::string_view& line)
+    {
+        for (;;) {
+            const char* begin = mBuf.data() + mBegin;
+            const size_t avail = mEnd - mBegin;
+            if (const void* nl = std::memchr(begin, '\n', avail)) {
+                const size_t len = size_t(static_cast<const char*>(nl) - begin);
+                line = std::string_view(begin, len);
+                mBegin += len + 1;
+                ++mLine;
+                return true;
+            }
+            if (mEof) {
+                if (avail == 0) return false;
+                line = std::string_view(begin, avail);
+                mBegin = mEnd;
+                ++mLine;
+                return true;
+            }
+            refill();
+        }
+    }
+
+    /// Copies @a n bytes; false if the file ends first.
+    bool readBytes(void* dst, size_t n)
+    {
+        char* out = static_cast<char*>(dst);
+        while (n > 0) {
+            if (mBegin == mEnd) {
+                if (mEof) return false;
+                refill();
+                continue;
+            }
+            const size_t k = std::min(n, mEnd - mBegin);
+            std::memcpy(out, mBuf.data() + mBegin, k);
+            mBegin += k;
+            out += k;
+            n -= k;
+        }
+        return true;
+    }
+
+    uint64_t lineNumber() const { return mLine; }
+
+private:
+    /// Moves the unread bytes to the front and reads more (grows the buffer for a long line).
+    void refill();
+
+    std::string mPath;
+    std::FILE* mFile = nullptr;
+    std::vector<char> mBuf;
+    size_t mBegin = 0, mEnd = 0;
+    bool mEof = false;
+    uint64_t mLine = 0;
+};
+
+/// Whitespace-separated tokens across lines (for OFF and ASCII PLY bodies).
+class TokenReader
+{
+public:
+    explicit TokenReader(FileReader& r) : mReader(r) {}
+
+    bool next(std::string_view& tok)
+    {
+        for (;;) {
+            if (nextToken(mRest, tok)) return true;
+            if (!mReader.nextLine(mRest)) return false;
+        }
+    }
+    /// Drops what is left of the current line.
+    void skipRestOfLine() { mRest = {}; }
+    uint64_t line() const { return mReader.lineNumber(); }
+
+private:
+    FileReader& mReader;
+    std::string_view mRest;
+};
+
+// --------------------------------------------------------------------------------- pre-scan
+
+/// What the pre-scan learnt about a file.
+struct Prescan
+{
+    bool binary = false;
+    bool haveFaces = false;
+    uint64_t faces = 0;              ///< faces (polygons / facets) in the file
+    bool havePoints = false;
+    std::vector<Vec3d> points;       ///< exact positions, file order (OBJ, OFF, PLY)
+};
+
+/// Pre-scans an OBJ file: coordinates, face indices, exact positions (MeshScanObj.cc).
+void prescanObj(const std::string& path, Prescan& out);
+
+/// Pre-scans an OFF file, ASCII or binary (MeshScanOff.cc).
+void prescanOff(const std::string& path, Prescan& out);
+
+/// Pre-scans a PLY file, ASCII or binary (MeshScanPly.cc).
+void prescanPly(const std::string& path, Prescan& out);
+
+/// Pre-scans an STL file, ASCII or binary; @a ext is the lower-case extension (MeshScanStl.cc).
+void prescanStl(const std::string& path, const std::string& ext, Prescan& out);
+
+} // namespace meshio_internal
+
+} // namespace levelforge

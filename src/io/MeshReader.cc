@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief The parts of the mesh readers every format shares: the buffered FileReader and the
+///        helpers of error messages.
+#include "io/MeshIOInternal.h"
+
+namespace levelforge {
+
+namespace meshio_internal {
+
+std::string formatPoint(const Vec3d& p)
+{
+    return "(" + formatDouble(p[0]) + ", " + formatDouble(p[1]) + ", " + formatDouble(p[2]) + ")";
+}
+
+[[noreturn]] void throwInvalid(const std::string& path, uint64_t line, const std::string& what)
+{
+    std::string msg = path + ": ";
+    if (line > 0) msg += "line " + std::to_string(line) + ": ";
+    throw InvalidMeshError(msg + what);
+}
+
+std::string describeCoordinateProblem(NumberStatus st, std::string_view tok)
+{
+    switch (st) {
+    case NumberStatus::NotANumber: return "cannot parse coordinate " + message_internal::quotedExcerpt(tok);
+    case NumberStatus::NonFinite: return "non-finite coordinate " + message_internal::quotedExcerpt(tok);
+    case NumberStatus::OutOfFloatRange:
+        return "coordinate " + message_internal::quotedExcerpt(tok) + " is beyond the single-precision range";
+    case NumberStatus::Ok: break;
+    }
+    return "bad coordinate " + message_internal::quotedExcerpt(tok);
+}
+
+FileReader::FileReader(const std::string& path) : mPath(path)
+{
+    mFile = std::fopen(path.c_str(), "rb");
+    if (!mFile) {
+        throw IoError("cannot open mesh file '" + path + "': " + std::strerror(errno));
+    }
+    mBuf.resize(size_t(1) << 20);
+}
+
+FileReader::~FileReader()
+{
+    if (mFile) std::fclose(mFile);
+}
+
+void FileReader::refill()
+{
+    const size_t avail = mEnd - mBegin;
+    if (mBegin > 0) {
+        std::memmove(mBuf.data(), mBuf.data() + mBegin, avail);
+        mBegin = 0;
+        mEnd = avail;
+    }
+    if (mEnd == mBuf.size()) mBuf.resize(mBuf.size() * 2); // a line longer than the buffer
+    const size_t got = std::fread(mBuf.data() + mEnd, 1, mBuf.size() - mEnd, mFile);
+    mEnd += got;
+    if (got == 0) {
+        if (std::ferror(mFile)) {
+            throw IoError("error reading mesh file '" + mPath + "': " + std::strerror(errno));
+        }
+        mEof = true;
+    }
+}
+
+} // namespace meshio_internal
+
+} // namespace levelforge

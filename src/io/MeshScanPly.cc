@@ -1,0 +1,260 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief Pre-scan of PLY files (ASCII and binary): the header, then every element; checks vertex
+///        x/y/z and the face index lists, keeps exact positions.
+#include "io/MeshIOInternal.h"
+
+#include <limits>
+
+namespace levelforge {
+
+namespace meshio_internal {
+
+// PLY (ASCII and binary): header, then every element in order; checks vertex x/y/z and the
+// face index lists, keeps exact positions.
+enum class PlyType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64, Invalid };
+
+PlyType plyType(std::string_view s)
+{
+    if (s == "char" || s == "int8") return PlyType::Int8;
+    if (s == "uchar" || s == "uint8") return PlyType::UInt8;
+    if (s == "short" || s == "int16") return PlyType::Int16;
+    if (s == "ushort" || s == "uint16") return PlyType::UInt16;
+    if (s == "int" || s == "int32") return PlyType::Int32;
+    if (s == "uint" || s == "uint32") return PlyType::UInt32;
+    if (s == "float" || s == "float32") return PlyType::Float32;
+    if (s == "double" || s == "float64") return PlyType::Float64;
+    return PlyType::Invalid;
+}
+
+size_t plySize(PlyType t)
+{
+    switch (t) {
+    case PlyType::Int8: case PlyType::UInt8: return 1;
+    case PlyType::Int16: case PlyType::UInt16: return 2;
+    case PlyType::Int32: case PlyType::UInt32: case PlyType::Float32: return 4;
+    case PlyType::Float64: return 8;
+    case PlyType::Invalid: break;
+    }
+    return 0;
+}
+
+struct PlyProperty
+{
+    std::string name;
+    bool isList = false;
+    PlyType type = PlyType::Invalid;      ///< value type (list item type for lists)
+    PlyType countType = PlyType::Invalid; ///< list count type
+};
+
+struct PlyElement
+{
+    std::string name;
+    uint64_t count = 0;
+    std::vector<PlyProperty> props;
+};
+
+enum class PlyFormat { Ascii, BinaryLE, BinaryBE };
+
+/// Reads one PLY value (binary) as double.
+bool readPlyBinary(FileReader& r, PlyType t, bool swap, double& out)
+{
+    unsigned char b[8];
+    const size_t n = plySize(t);
+    if (!r.readBytes(b, n)) return false;
+    if (swap) std::reverse(b, b + n);
+    switch (t) {
+    case PlyType::Int8: { int8_t v; std::memcpy(&v, b, 1); out = v; break; }
+    case PlyType::UInt8: { uint8_t v; std::memcpy(&v, b, 1); out = v; break; }
+    case PlyType::Int16: { int16_t v; std::memcpy(&v, b, 2); out = v; break; }
+    case PlyType::UInt16: { uint16_t v; std::memcpy(&v, b, 2); out = v; break; }
+    case PlyType::Int32: { int32_t v; std::memcpy(&v, b, 4); out = v; break; }
+    case PlyType::UInt32: { uint32_t v; std::memcpy(&v, b, 4); out = v; break; }
+    case PlyType::Float32: { float v; std::memcpy(&v, b, 4); out = v; break; }
+    case PlyType::Float64: { std::memcpy(&out, b, 8); break; }
+    case PlyType::Invalid: return false;
+    }
+    return true;
+}
+
+void prescanPly(const std::string& path, Prescan& out)
+{
+    FileReader reader(path);
+    std::string_view line, rest, tok;
+    if (!reader.nextLine(line)) throwInvalid(path, 0, "the file is empty");
+    if (trimmed(line) != "ply") {
+        throwInvalid(path, 1, "not a PLY file: the first line is " + message_internal::quotedExcerpt(trimmed(line)) +
+            ", expected 'ply'");
+    }
+    PlyFormat format = PlyFormat::Ascii;
+    bool haveFormat = false, ended = false;
+    std::vector<PlyElement> elements;
+    // OpenMesh parses the header token by token across lines and loops forever when a line has
+    // a token too few or a non-number where it expects one: check every line exactly.
+    std::string_view t[6];
+    while (reader.nextLine(line)) {
+        rest = line;
+        if (!nextToken(rest, t[0])) continue;
+        if (t[0] == "comment" || t[0] == "obj_info") continue;
+        int n = 1;
+        while (n < 6 && nextToken(rest, t[n])) ++n;
+        if (n == 6 || nextToken(rest, tok)) n = 7; // too many
+        auto malformed = [&](const char* expected) {
+            throwInvalid(path, reader.lineNumber(), "malformed PLY header line " + message_internal::quotedExcerpt(trimmed(line)) +
+                ", expected '" + expected + "'");
+        };
+        if (t[0] == "end_header") {
+            if (n != 1) malformed("end_header");
+            ended = true;
+            break;
+        }
+        if (t[0] == "format") {
+            double version = 0;
+            if (n != 3 || parseCoordinate(t[2], version) != NumberStatus::Ok) {
+                malformed("format ascii|binary_little_endian|binary_big_endian 1.0");
+            }
+            if (t[1] == "ascii") format = PlyFormat::Ascii;
+            else if (t[1] == "binary_little_endian") format = PlyFormat::BinaryLE;
+            else if (t[1] == "binary_big_endian") format = PlyFormat::BinaryBE;
+            else throwInvalid(path, reader.lineNumber(), "unknown PLY format " + message_internal::quotedExcerpt(t[1]));
+            haveFormat = true;
+        } else if (t[0] == "element") {
+            PlyElement e;
+            if (n != 3 || !parseInteger(t[2], e.count) ||
+                e.count > uint64_t(std::numeric_limits<int>::max())) {
+                malformed("element <name> <count>");
+            }
+            e.name = std::string(t[1]);
+            elements.push_back(std::move(e));
+        } else if (t[0] == "property") {
+            if (elements.empty()) {
+                throwInvalid(path, reader.lineNumber(), "property before any element");
+            }
+            PlyProperty prop;
+            if (n >= 2 && t[1] == "list") {
+                if (n != 5) malformed("property list <count type> <item type> <name>");
+                prop.isList = true;
+                prop.countType = plyType(t[2]);
+                prop.type = plyType(t[3]);
+                prop.name = std::string(t[4]);
+                if (prop.countType == PlyType::Invalid || prop.type == PlyType::Invalid ||
+                    prop.countType == PlyType::Float32 || prop.countType == PlyType::Float64) {
+                    throwInvalid(path, reader.lineNumber(), "unsupported PLY list types in " +
+                        message_internal::quotedExcerpt(trimmed(line)));
+                }
+            } else {
+                if (n != 3) malformed("property <type> <name>");
+                prop.type = plyType(t[1]);
+                prop.name = std::string(t[2]);
+                if (prop.type == PlyType::Invalid) {
+                    throwInvalid(path, reader.lineNumber(), "unknown PLY type " + message_internal::quotedExcerpt(t[1]));
+                }
+            }
+            elements.back().props.push_back(std::move(prop));
+        } else {
+            const bool number = std::isdigit(static_cast<unsigned char>(t[0][0])) || t[0][0] == '-' ||
+                                t[0][0] == '.';
+            throwInvalid(path, reader.lineNumber(), "unknown PLY header keyword " + message_internal::quotedExcerpt(t[0]) +
+                (number ? " (is 'end_header' missing?)" : ""));
+        }
+    }
+    if (!ended) throwInvalid(path, reader.lineNumber(), "the PLY header has no 'end_header'");
+    if (!haveFormat) throwInvalid(path, 0, "the PLY header has no 'format' line");
+    out.binary = format != PlyFormat::Ascii;
+    const bool swap = (format == PlyFormat::BinaryLE) == kHostBigEndian;
+
+    uint64_t nV = 0;
+    for (const PlyElement& e : elements) {
+        if (e.name == "vertex") nV = e.count;
+    }
+    TokenReader tokens(reader);
+    bool sawVertices = false;
+    for (const PlyElement& e : elements) {
+        const bool isVertex = e.name == "vertex";
+        const bool isFace = e.name == "face";
+        int xyz[3] = {-1, -1, -1};
+        int faceList = -1;
+        for (size_t i = 0; i < e.props.size(); ++i) {
+            const PlyProperty& p = e.props[i];
+            if (isVertex && !p.isList) {
+                if (p.name == "x") xyz[0] = int(i);
+                if (p.name == "y") xyz[1] = int(i);
+                if (p.name == "z") xyz[2] = int(i);
+            }
+            if (isFace && p.isList && (p.name == "vertex_indices" || p.name == "vertex_index")) {
+                faceList = int(i);
+            }
+        }
+        const bool keepPoints = isVertex && xyz[0] >= 0 && xyz[1] >= 0 && xyz[2] >= 0;
+        if (keepPoints) out.points.resize(e.count);
+        if (isVertex) sawVertices = true;
+        const std::string what = isVertex ? "vertex" : (isFace ? "face" : e.name);
+        for (uint64_t n = 0; n < e.count; ++n) {
+            for (size_t i = 0; i < e.props.size(); ++i) {
+                const PlyProperty& p = e.props[i];
+                double value = 0;
+                uint64_t items = 1;
+                if (p.isList) {
+                    if (format == PlyFormat::Ascii) {
+                        if (!tokens.next(tok) || !parseInteger(tok, items)) {
+                            throwInvalid(path, tokens.line(), what + " " + std::to_string(n) +
+                                ": cannot read the list length of '" + p.name + "'");
+                        }
+                    } else {
+                        if (!readPlyBinary(reader, p.countType, swap, value)) {
+                            throwInvalid(path, 0, "the file ends inside " + what + " " + std::to_string(n));
+                        }
+                        items = uint64_t(value);
+                    }
+                }
+                for (uint64_t k = 0; k < items; ++k) {
+                    NumberStatus st = NumberStatus::Ok;
+                    if (format == PlyFormat::Ascii) {
+                        if (!tokens.next(tok)) {
+                            throwInvalid(path, tokens.line(), "the file ends inside " + what + " " +
+                                std::to_string(n) + " of " + std::to_string(e.count));
+                        }
+                        st = parseCoordinate(tok, value);
+                        if (st == NumberStatus::NotANumber) {
+                            throwInvalid(path, tokens.line(), what + " " + std::to_string(n) +
+                                ": cannot parse the value " + message_internal::quotedExcerpt(tok) + " of '" + p.name + "'");
+                        }
+                    } else {
+                        if (!readPlyBinary(reader, p.type, swap, value)) {
+                            throwInvalid(path, 0, "the file ends inside " + what + " " +
+                                std::to_string(n) + " of " + std::to_string(e.count));
+                        }
+                        if (!std::isfinite(value)) st = NumberStatus::NonFinite;
+                        else if (std::abs(value) > double(FLT_MAX)) st = NumberStatus::OutOfFloatRange;
+                    }
+                    const uint64_t lineNo = format == PlyFormat::Ascii ? tokens.line() : 0;
+                    if (keepPoints && (int(i) == xyz[0] || int(i) == xyz[1] || int(i) == xyz[2])) {
+                        if (st != NumberStatus::Ok) {
+                            throwInvalid(path, lineNo, "vertex " + std::to_string(n) + ": " +
+                                describeCoordinateProblem(st, format == PlyFormat::Ascii ? tok
+                                    : std::string_view(formatDouble(value))));
+                        }
+                        out.points[n][int(i) == xyz[0] ? 0 : (int(i) == xyz[1] ? 1 : 2)] = value;
+                    }
+                    if (int(i) == faceList) {
+                        if (st != NumberStatus::Ok || value != std::floor(value) || value < 0 ||
+                            value >= double(nV) || !sawVertices) {
+                            throwInvalid(path, lineNo, "face " + std::to_string(n) + ": vertex index " +
+                                formatDouble(value) + " is out of range (the file has " +
+                                std::to_string(nV) + " vertices, numbered from 0)");
+                        }
+                    }
+                }
+            }
+        }
+        if (isFace) {
+            out.faces = e.count;
+            out.haveFaces = true;
+        }
+        if (keepPoints) out.havePoints = true;
+    }
+}
+
+} // namespace meshio_internal
+
+} // namespace levelforge

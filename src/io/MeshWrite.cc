@@ -1,0 +1,232 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief writeMesh(): OBJ and OFF (shortest round-trip decimal form), binary little-endian PLY
+///        (double coordinates) and binary STL, each written atomically.
+#include "io/MeshIOInternal.h"
+
+#include "detail/AtomicFile.h"
+
+#include <cstdio>
+#include <limits>
+
+namespace levelforge {
+
+namespace meshio_internal {
+
+// ---------------------------------------------------------------------------------- writing
+
+/// Buffered writing of a mesh file through a detail::AtomicFile: the file appears on commit().
+class MeshFileWriter
+{
+public:
+    explicit MeshFileWriter(const std::string& path)
+        : mFile(path, "cannot write mesh file '" + path + "'")
+    {
+        mStream = ::fdopen(mFile.descriptor(), "wb");
+        if (!mStream) mFile.fail(std::strerror(errno));
+        mFile.releaseDescriptor(); // now owned by mStream
+        mBuf.reserve(kChunk + 256);
+    }
+    ~MeshFileWriter()
+    {
+        if (mStream) std::fclose(mStream);
+        // mFile removes the temporary file unless committed.
+    }
+    MeshFileWriter(const MeshFileWriter&) = delete;
+    MeshFileWriter& operator=(const MeshFileWriter&) = delete;
+
+    void put(const void* data, size_t n)
+    {
+        mBuf.append(static_cast<const char*>(data), n);
+        if (mBuf.size() >= kChunk) flush();
+    }
+    void put(std::string_view s) { put(s.data(), s.size()); }
+    void put(char c) { mBuf.push_back(c); }
+    void putNumber(double v)
+    {
+        char tmp[64];
+        const auto r = std::to_chars(tmp, tmp + sizeof(tmp), v); // shortest round-trip form
+        put(tmp, size_t(r.ptr - tmp));
+    }
+    void putNumber(uint64_t v)
+    {
+        char tmp[32];
+        const auto r = std::to_chars(tmp, tmp + sizeof(tmp), v);
+        put(tmp, size_t(r.ptr - tmp));
+    }
+    template<typename T>
+    void putLittleEndian(T v)
+    {
+        unsigned char b[sizeof(T)];
+        std::memcpy(b, &v, sizeof(T));
+        if (kHostBigEndian) std::reverse(b, b + sizeof(T));
+        put(b, sizeof(T));
+    }
+
+    void commit()
+    {
+        flush();
+        const bool bad = std::fflush(mStream) != 0 || std::ferror(mStream);
+        const int closeResult = std::fclose(mStream);
+        mStream = nullptr;
+        if (bad || closeResult != 0) mFile.fail(std::strerror(errno));
+        mFile.sync();
+        mFile.commit();
+    }
+
+private:
+    void flush()
+    {
+        if (mBuf.empty()) return;
+        if (std::fwrite(mBuf.data(), 1, mBuf.size(), mStream) != mBuf.size()) {
+            mFile.fail(std::strerror(errno));
+        }
+        mBuf.clear();
+    }
+
+    static constexpr size_t kChunk = size_t(1) << 20;
+    detail::AtomicFile mFile;
+    std::FILE* mStream = nullptr;
+    std::string mBuf;
+};
+
+std::string oneLine(const std::string& s)
+{
+    std::string out = s;
+    for (char& c : out) {
+        if (c == '\n' || c == '\r') c = ' ';
+    }
+    return out;
+}
+
+void writeObj(const TriangleMesh& mesh, MeshFileWriter& w)
+{
+    w.put("# written by levelforge\n");
+    if (!mesh.source.empty()) {
+        w.put("# source: ");
+        w.put(oneLine(mesh.source));
+        w.put('\n');
+    }
+    for (const Vec3d& p : mesh.points) {
+        w.put("v ");
+        w.putNumber(p[0]);
+        w.put(' ');
+        w.putNumber(p[1]);
+        w.put(' ');
+        w.putNumber(p[2]);
+        w.put('\n');
+    }
+    for (const Vec3I& t : mesh.triangles) {
+        w.put("f ");
+        w.putNumber(uint64_t(t[0]) + 1);
+        w.put(' ');
+        w.putNumber(uint64_t(t[1]) + 1);
+        w.put(' ');
+        w.putNumber(uint64_t(t[2]) + 1);
+        w.put('\n');
+    }
+}
+
+void writeOff(const TriangleMesh& mesh, MeshFileWriter& w)
+{
+    w.put("OFF\n");
+    w.putNumber(uint64_t(mesh.points.size()));
+    w.put(' ');
+    w.putNumber(uint64_t(mesh.triangles.size()));
+    w.put(" 0\n");
+    for (const Vec3d& p : mesh.points) {
+        w.putNumber(p[0]);
+        w.put(' ');
+        w.putNumber(p[1]);
+        w.put(' ');
+        w.putNumber(p[2]);
+        w.put('\n');
+    }
+    for (const Vec3I& t : mesh.triangles) {
+        w.put("3 ");
+        w.putNumber(uint64_t(t[0]));
+        w.put(' ');
+        w.putNumber(uint64_t(t[1]));
+        w.put(' ');
+        w.putNumber(uint64_t(t[2]));
+        w.put('\n');
+    }
+}
+
+void writePly(const TriangleMesh& mesh, MeshFileWriter& w)
+{
+    const bool smallIndices = mesh.points.size() <= size_t(std::numeric_limits<int32_t>::max());
+    std::string header = "ply\nformat binary_little_endian 1.0\ncomment written by levelforge\n";
+    if (!mesh.source.empty()) header += "comment source: " + oneLine(mesh.source) + "\n";
+    header += "element vertex " + std::to_string(mesh.points.size()) + "\n";
+    header += "property double x\nproperty double y\nproperty double z\n";
+    header += "element face " + std::to_string(mesh.triangles.size()) + "\n";
+    header += smallIndices ? "property list uchar int vertex_indices\n"
+                           : "property list uchar uint vertex_indices\n";
+    header += "end_header\n";
+    w.put(header);
+    for (const Vec3d& p : mesh.points) {
+        w.putLittleEndian(p[0]);
+        w.putLittleEndian(p[1]);
+        w.putLittleEndian(p[2]);
+    }
+    for (const Vec3I& t : mesh.triangles) {
+        w.putLittleEndian(uint8_t(3));
+        w.putLittleEndian(uint32_t(t[0]));
+        w.putLittleEndian(uint32_t(t[1]));
+        w.putLittleEndian(uint32_t(t[2]));
+    }
+}
+
+void writeStl(const TriangleMesh& mesh, const std::string& path, MeshFileWriter& w)
+{
+    if (mesh.triangles.size() > size_t(std::numeric_limits<uint32_t>::max())) {
+        throw IoError("cannot write mesh file '" + path + "': binary STL holds at most 2^32-1 triangles");
+    }
+    // 80-byte header that does not start with "solid" (some readers take that for ASCII).
+    char header[80];
+    std::memset(header, ' ', sizeof(header));
+    const std::string text = "levelforge binary STL " + oneLine(mesh.source);
+    std::memcpy(header, text.data(), std::min(text.size(), sizeof(header)));
+    w.put(header, sizeof(header));
+    w.putLittleEndian(uint32_t(mesh.triangles.size()));
+    const size_t nV = mesh.points.size();
+    for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+        const Vec3I& t = mesh.triangles[i];
+        if (t[0] >= nV || t[1] >= nV || t[2] >= nV) {
+            throw InvalidMeshError(path + ": cannot write triangle " + std::to_string(i) +
+                ": vertex index out of range (the mesh has " + std::to_string(nV) + " vertices)");
+        }
+        const Vec3d &a = mesh.points[t[0]], &b = mesh.points[t[1]], &c = mesh.points[t[2]];
+        Vec3d n = (b - a).cross(c - a);
+        const double len = n.length();
+        n = len > 0.0 ? n / len : Vec3d(0.0);
+        for (int k = 0; k < 3; ++k) w.putLittleEndian(float(n[k]));
+        for (const Vec3d* p : {&a, &b, &c}) {
+            for (int k = 0; k < 3; ++k) w.putLittleEndian(float((*p)[k]));
+        }
+        w.putLittleEndian(uint16_t(0));
+    }
+}
+
+} // namespace meshio_internal
+
+// ====================================================================================== API
+
+void writeMesh(const TriangleMesh& mesh, const std::string& path)
+{
+    using namespace meshio_internal;
+    const std::string ext = lowerExtension(path);
+    if (ext != ".obj" && ext != ".off" && ext != ".ply" && ext != ".stl") {
+        throw IoError("cannot write mesh file '" + path + "': unsupported format '" + ext +
+            "' (supported: .obj .off .ply .stl)");
+    }
+    MeshFileWriter w(path);
+    if (ext == ".obj") writeObj(mesh, w);
+    else if (ext == ".off") writeOff(mesh, w);
+    else if (ext == ".ply") writePly(mesh, w);
+    else writeStl(mesh, path, w);
+    w.commit();
+}
+
+} // namespace levelforge
