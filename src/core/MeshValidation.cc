@@ -16,6 +16,20 @@ namespace levelforge {
 
 namespace meshvalidation_internal {
 
+/// Counting sort: turns per-bucket counts into bucket starts (exclusive prefix sum, in place);
+/// returns the total.
+inline uint64_t exclusivePrefixSum(std::vector<uint64_t>& counts, size_t n)
+{
+    uint64_t total = 0;
+    for (size_t i = 0; i < n; ++i) {
+        const uint64_t c = counts[i];
+        counts[i] = total;
+        total += c;
+    }
+    return total;
+}
+
+
 std::string sourceName(const TriangleMesh& mesh)
 {
     return mesh.source.empty() ? std::string("<mesh>") : mesh.source;
@@ -240,12 +254,7 @@ MeshReport validateMesh(const TriangleMesh& mesh)
     for (uint32_t i = 0; i < nV; ++i) r.unusedVertices += used[i] ? 0 : 1;
 
     // Prefix sums: bucketEnd[v] = start of bucket v; filling advances it to the end of bucket v.
-    uint64_t total = 0;
-    for (uint32_t v = 0; v < nV; ++v) {
-        const uint64_t c = bucketEnd[v];
-        bucketEnd[v] = total;
-        total += c;
-    }
+    const uint64_t total = exclusivePrefixSum(bucketEnd, nV);
     std::vector<uint64_t> entries(total);
     for (size_t t = 0; t < nT; ++t) {
         const Vec3I& tri = mesh.triangles[t];
@@ -285,12 +294,7 @@ MeshReport validateMesh(const TriangleMesh& mesh)
         for (int k = 0; k < 3; ++k) ++bucketEnd[tri[k]];
         corners += 3;
     }
-    uint64_t running = 0;
-    for (uint32_t v = 0; v < nV; ++v) {
-        const uint64_t c = bucketEnd[v];
-        bucketEnd[v] = running;
-        running += c;
-    }
+    (void)exclusivePrefixSum(bucketEnd, nV);
     std::vector<uint32_t> incident(corners);
     for (size_t t = 0; t < nT; ++t) {
         const Vec3I& tri = mesh.triangles[t];

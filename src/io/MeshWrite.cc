@@ -99,16 +99,13 @@ std::string oneLine(const std::string& s)
     return out;
 }
 
-void writeObj(const TriangleMesh& mesh, MeshFileWriter& w)
+/// The text lines of OBJ and OFF: one "<vertexPrefix>x y z" line per vertex, then one
+/// "<facePrefix>i j k" line per triangle with indices from `base` (OBJ 1, OFF 0).
+void putLines(MeshFileWriter& w, const TriangleMesh& mesh, const char* vertexPrefix, const char* facePrefix,
+              uint64_t base)
 {
-    w.put("# written by levelforge\n");
-    if (!mesh.source.empty()) {
-        w.put("# source: ");
-        w.put(oneLine(mesh.source));
-        w.put('\n');
-    }
     for (const Vec3d& p : mesh.points) {
-        w.put("v ");
+        w.put(vertexPrefix);
         w.putNumber(p[0]);
         w.put(' ');
         w.putNumber(p[1]);
@@ -117,14 +114,25 @@ void writeObj(const TriangleMesh& mesh, MeshFileWriter& w)
         w.put('\n');
     }
     for (const Vec3I& t : mesh.triangles) {
-        w.put("f ");
-        w.putNumber(uint64_t(t[0]) + 1);
+        w.put(facePrefix);
+        w.putNumber(uint64_t(t[0]) + base);
         w.put(' ');
-        w.putNumber(uint64_t(t[1]) + 1);
+        w.putNumber(uint64_t(t[1]) + base);
         w.put(' ');
-        w.putNumber(uint64_t(t[2]) + 1);
+        w.putNumber(uint64_t(t[2]) + base);
         w.put('\n');
     }
+}
+
+void writeObj(const TriangleMesh& mesh, MeshFileWriter& w)
+{
+    w.put("# written by levelforge\n");
+    if (!mesh.source.empty()) {
+        w.put("# source: ");
+        w.put(oneLine(mesh.source));
+        w.put('\n');
+    }
+    putLines(w, mesh, "v ", "f ", 1);
 }
 
 void writeOff(const TriangleMesh& mesh, MeshFileWriter& w)
@@ -134,23 +142,7 @@ void writeOff(const TriangleMesh& mesh, MeshFileWriter& w)
     w.put(' ');
     w.putNumber(uint64_t(mesh.triangles.size()));
     w.put(" 0\n");
-    for (const Vec3d& p : mesh.points) {
-        w.putNumber(p[0]);
-        w.put(' ');
-        w.putNumber(p[1]);
-        w.put(' ');
-        w.putNumber(p[2]);
-        w.put('\n');
-    }
-    for (const Vec3I& t : mesh.triangles) {
-        w.put("3 ");
-        w.putNumber(uint64_t(t[0]));
-        w.put(' ');
-        w.putNumber(uint64_t(t[1]));
-        w.put(' ');
-        w.putNumber(uint64_t(t[2]));
-        w.put('\n');
-    }
+    putLines(w, mesh, "", "3 ", 0);
 }
 
 void writePly(const TriangleMesh& mesh, MeshFileWriter& w)

@@ -46,6 +46,27 @@ inline uint64_t edgeKey(uint32_t a, uint32_t b)
 /// Uniform double in [0, 1) from 53 random bits (the same on every platform).
 inline double uniform01(std::mt19937_64& rng) { return double(rng() >> 11) * (1.0 / 9007199254740992.0); }
 
+/// Two triangles per cell of an M x N vertex grid wrapped in both directions (vertex (i, j) at
+/// index i * N + j): (i,j) -> (i+1,j) -> (i+1,j+1) and (i,j) -> (i+1,j+1) -> (i,j+1), or the
+/// opposite winding when `reverse`.
+inline void addWrappedGrid(TriangleMesh& mesh, uint32_t M, uint32_t N, bool reverse)
+{
+    for (uint32_t i = 0; i < M; ++i) {
+        const uint32_t i1 = (i + 1) % M;
+        for (uint32_t j = 0; j < N; ++j) {
+            const uint32_t j1 = (j + 1) % N;
+            const uint32_t a = i * N + j, b = i1 * N + j, c = i1 * N + j1, d = i * N + j1;
+            if (reverse) {
+                mesh.triangles.emplace_back(a, d, c);
+                mesh.triangles.emplace_back(a, c, b);
+            } else {
+                mesh.triangles.emplace_back(a, b, c);
+                mesh.triangles.emplace_back(a, c, d);
+            }
+        }
+    }
+}
+
 } // namespace meshshapes_internal
 
 // ------------------------------------------------------------------------------- icosphere
@@ -200,15 +221,7 @@ TriangleMesh makeTorus(const Vec3d& center, double majorRadius, double minorRadi
         }
     }
     // d/du x d/dv points outward, so (i,j) -> (i+1,j) -> (i+1,j+1) is counter-clockwise outside.
-    for (uint32_t i = 0; i < M; ++i) {
-        const uint32_t i1 = (i + 1) % M;
-        for (uint32_t j = 0; j < N; ++j) {
-            const uint32_t j1 = (j + 1) % N;
-            const uint32_t a = i * N + j, b = i1 * N + j, c = i1 * N + j1, d = i * N + j1;
-            mesh.triangles.emplace_back(a, b, c);
-            mesh.triangles.emplace_back(a, c, d);
-        }
-    }
+    meshshapes_internal::addWrappedGrid(mesh, M, N, false);
     mesh.source = "<torus c=" + vec(center) + " R=" + num(majorRadius) + " r=" + num(minorRadius) +
                   " segments=" + std::to_string(majorSegments) + "x" + std::to_string(minorSegments) + ">";
     return mesh;
@@ -263,15 +276,7 @@ TriangleMesh makeTorusKnot(int p, int q, double radius, double tubeRadius, int s
         }
     }
     // d/dt x d/dphi points inward for this frame, so go (i,j) -> (i,j+1) -> (i+1,j+1).
-    for (uint32_t i = 0; i < M; ++i) {
-        const uint32_t i1 = (i + 1) % M;
-        for (uint32_t j = 0; j < N; ++j) {
-            const uint32_t j1 = (j + 1) % N;
-            const uint32_t v00 = i * N + j, v10 = i1 * N + j, v11 = i1 * N + j1, v01 = i * N + j1;
-            mesh.triangles.emplace_back(v00, v01, v11);
-            mesh.triangles.emplace_back(v00, v11, v10);
-        }
-    }
+    meshshapes_internal::addWrappedGrid(mesh, M, N, true);
     mesh.source = "<torus knot p=" + std::to_string(p) + " q=" + std::to_string(q) + " r=" + num(radius) +
                   " tube=" + num(tubeRadius) + " segments=" + std::to_string(segments) + "x" +
                   std::to_string(tubeSegments) + ">";

@@ -11,16 +11,16 @@
 
 namespace levelforge::volume_internal {
 
-/// A volume of value type Out with the dims, spacing and origin of @p v (values
-/// value-initialised).
+/// A volume of value type Out with the dims, spacing and origin of @p v, every value @p fill
+/// (value-initialised by default).
 template<typename Out, typename In>
-DenseVolume<Out> like(const DenseVolume<In>& v)
+DenseVolume<Out> like(const DenseVolume<In>& v, Out fill = Out())
 {
     DenseVolume<Out> o;
     o.dims = v.dims;
     o.spacing = v.spacing;
     o.origin = v.origin;
-    o.data.resize(v.data.size());
+    o.data.assign(v.data.size(), fill);
     return o;
 }
 

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // levelforge — exact dense EDT (Felzenszwalb–Huttenlocher), brute force, and accuracy report.
 // See include/levelforge/volume/ExactDistanceTransform.h.
+#include "volume/DenseVolumeHelpers.h"
+
 #include <levelforge/volume/ExactDistanceTransform.h>
 
 #include <levelforge/core/Exceptions.h>
@@ -68,11 +70,7 @@ ScalarVolume exactDistanceTransform(const MaskVolume& features, const ExactTrans
     const double sx2 = features.spacing[0] * features.spacing[0];
     const double sy2 = features.spacing[1] * features.spacing[1];
     const double sz2 = features.spacing[2] * features.spacing[2];
-    ScalarVolume out;
-    out.dims = features.dims;
-    out.spacing = features.spacing;
-    out.origin = features.origin;
-    out.data.assign(features.data.size(), kInf);
+    ScalarVolume out = volume_internal::like<float>(features, kInf);
     float* g = out.data.data();
     auto* interrupter = options.interrupter;
     std::atomic<bool> stop{false};
@@ -147,11 +145,7 @@ ScalarVolume bruteForceDistanceTransform(const MaskVolume& features)
             for (int i = 0; i < features.dims.x(); ++i)
                 if (features(i, j, k))
                     pts.emplace_back(i * features.spacing[0], j * features.spacing[1], k * features.spacing[2]);
-    ScalarVolume out;
-    out.dims = features.dims;
-    out.spacing = features.spacing;
-    out.origin = features.origin;
-    out.data.assign(features.data.size(), kInf);
+    ScalarVolume out = volume_internal::like<float>(features, kInf);
     tbb::parallel_for(tbb::blocked_range<int>(0, features.dims.z()), [&](const tbb::blocked_range<int>& r) {
         for (int k = r.begin(); k != r.end(); ++k)
             for (int j = 0; j < features.dims.y(); ++j)

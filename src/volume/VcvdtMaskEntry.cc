@@ -2,6 +2,8 @@
 // The mask entry of the vector distance transforms: vectorDistanceTransform(const MaskVolume&)
 // runs the full-grid methods on two slice buffers fed from the mask, keeps a 16-bit integer
 // vector per voxel between the sweeps and writes the distances (see VectorDistanceTransform.h).
+#include "volume/DenseVolumeHelpers.h"
+
 #include <levelforge/volume/VectorDistanceTransform.h>
 
 #include "detail/PageBuffer.h"
@@ -266,11 +268,7 @@ ScalarVolume vectorDistanceTransform(const MaskVolume& features, const VectorTra
             [](uint64_t a, uint64_t b) { return a + b; });
     }
     st.passesPerVoxel = m.sweeps[0].passCount + m.sweeps[1].passCount;
-    ScalarVolume out;
-    out.dims = features.dims;
-    out.spacing = features.spacing;
-    out.origin = features.origin;
-    out.data.resize(features.data.size());
+    ScalarVolume out = volume_internal::like<float>(features);
     if (options.interrupter) options.interrupter->start("vector distance transform");
     const Kernel kernel(sp);
     MaskIo io(features, out, kernel);

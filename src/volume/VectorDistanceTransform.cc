@@ -4,6 +4,8 @@
 // See include/levelforge/volume/VectorDistanceTransform.h for the methods; the pass tables are
 // in VectorDistanceTransformInternal.h, the row kernel in VcvdtKernels.cc, the column lanes in
 // VcvdtFullGrid.h and the mask entry in VcvdtMaskEntry.cc.
+#include "volume/DenseVolumeHelpers.h"
+
 #include <levelforge/volume/VectorDistanceTransform.h>
 
 #include "detail/Timer.h"
@@ -249,11 +251,7 @@ const char* vectorTransformMethodName(VectorTransformMethod method)
 VectorVolume initVectorVolume(const MaskVolume& features)
 {
     requireValidVolume(features, "initVectorVolume");
-    VectorVolume v;
-    v.dims = features.dims;
-    v.spacing = features.spacing;
-    v.origin = features.origin;
-    v.data.resize(features.data.size());
+    VectorVolume v = volume_internal::like<ClosestVector>(features);
     const ClosestVector zero{0.f, 0.f, 0.f, 0.f}, inf{kInf, kInf, kInf, kInf};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, v.data.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) v.data[i] = features.data[i] ? zero : inf;
@@ -294,11 +292,7 @@ void vectorDistanceTransform(VectorVolume& vectors, const VectorTransformOptions
 ScalarVolume vectorLength(const VectorVolume& vectors)
 {
     requireValidVolume(vectors, "vectorLength");
-    ScalarVolume out;
-    out.dims = vectors.dims;
-    out.spacing = vectors.spacing;
-    out.origin = vectors.origin;
-    out.data.resize(vectors.data.size());
+    ScalarVolume out = volume_internal::like<float>(vectors);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, out.data.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) out.data[i] = std::sqrt(vectors.data[i].d2);
     });
