@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
-// levelforge operators — number formatting shared by the operators' printed summaries.
+// levelforge operators — number formatting and timing shared by the operators' printed summaries.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -14,6 +15,12 @@ inline std::string fmt(const char* format, double v)
     char buf[64];
     std::snprintf(buf, sizeof(buf), format, v);
     return buf;
+}
+
+/// Wall-clock seconds since @p t0 (steady clock), for the summaries' "time:" lines.
+inline double secondsSince(std::chrono::steady_clock::time_point t0)
+{
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 /// 1234567 -> "1,234,567".

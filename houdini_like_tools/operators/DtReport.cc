@@ -3,6 +3,7 @@
 // exact Euclidean field, in the columns of the paper's tables (1, 2, 4–7).
 #include "Interrupt.h"
 #include "Operator.h"
+#include "OperatorText.h"
 
 #include <levelforge/volume/ChamferDistanceTransform.h>
 #include <levelforge/core/Exceptions.h>
@@ -124,7 +125,7 @@ void cookDtReport(OperatorArgs& args)
     const ScalarVolume exact = volumeSignedDistance(field, o);
     DistanceTransformComparison er = compareDistanceFields(exact, exact);
     er.method = "True Euclidean (sub-voxel surface, BVH)";
-    er.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    er.seconds = secondsSince(t0);
     printRow(os, inVoxels(er));
     for (bool sub : {false, true}) {
         for (VolumeDistanceMethod m : {VolumeDistanceMethod::CityBlock, VolumeDistanceMethod::EVDT,

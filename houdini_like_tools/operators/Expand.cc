@@ -69,7 +69,7 @@ void cookExpand(OperatorArgs& args)
     ExpandLevelSetStats st;
     const auto t1 = Clock::now();
     openvdb::FloatGrid::Ptr out = expandLevelSet(*grid, opt, &st);
-    const double seconds = std::chrono::duration<double>(Clock::now() - t1).count();
+    const double seconds = secondsSince(t1);
 
     const double h = out->voxelSize()[0];
     const double toVoxels = opt.units == WidthUnits::World ? 1.0 / h : 1.0;
@@ -104,7 +104,7 @@ void cookExpand(OperatorArgs& args)
     }
     os << "  time: " << fmt("%.2f", seconds) << " s expansion (topology "
        << fmt("%.2f", st.secondsTopology) << (vector ? ", vectors " : ", sweeps ") << fmt("%.2f", st.secondsSweep)
-       << "), " << fmt("%.2f", std::chrono::duration<double>(Clock::now() - t0).count())
+       << "), " << fmt("%.2f", secondsSince(t0))
        << " s total\n";
     if (!vector && !st.converged) {
         args.err() << "levelforge: warning: the sweeps did not converge to " << opt.tolerance

@@ -63,7 +63,7 @@ void cookMeshToAdf(OperatorArgs& args)
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
     writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
-    const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double total = secondsSince(t0);
 
     out << "levelforge: wrote " << output << "\n"
         << "  ADF '" << grid->getName() << "': finest voxel " << fmt("%.6g", s.voxelSize) << " (world units), domain "

@@ -128,7 +128,7 @@ void cookMeshToSdf(OperatorArgs& args)
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
     writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
-    const double totalSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    const double totalSeconds = secondsSince(t0);
 
     const double voxelSize = grid->voxelSize()[0];
     out << "levelforge: wrote " << output << "\n"

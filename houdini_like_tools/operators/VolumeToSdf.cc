@@ -159,7 +159,7 @@ void cookSparse(OperatorArgs& args, const std::string& input, const std::string&
     } catch (const InvalidArgumentError& e) {
         throw InvalidArgumentError(input + ": " + e.what());
     }
-    const double seconds = std::chrono::duration<double>(Clock::now() - t1).count();
+    const double seconds = secondsSince(t1);
     writeVolumeLevelSet(grid, opt, grid->voxelSize()[0], input, output,
                         std::string("satherley-jones-") + volumeDistanceMethodName(opt.method) + "-subvoxel-sparse");
     std::ostream& os = args.out();
@@ -176,7 +176,7 @@ void cookSparse(OperatorArgs& args, const std::string& input, const std::string&
        << fmt("%.2f", st.secondsExact) << " [voxelize " << fmt("%.2f", st.exact.secondsVoxelize) << ", lists "
        << fmt("%.2f", st.exact.secondsLists) << ", distance " << fmt("%.2f", st.exact.secondsDistance) << "], widen "
        << fmt("%.2f", st.secondsWiden) << "), "
-       << fmt("%.2f", std::chrono::duration<double>(Clock::now() - t0).count()) << " s total\n";
+       << fmt("%.2f", secondsSince(t0)) << " s total\n";
 }
 
 void cookVolumeToSdf(OperatorArgs& args)
@@ -200,7 +200,7 @@ void cookVolumeToSdf(OperatorArgs& args)
     VolumeToLevelSetStats st;
     const auto t1 = Clock::now();
     openvdb::FloatGrid::Ptr grid = volumeToLevelSet(volume, opt, &st);
-    const double seconds = std::chrono::duration<double>(Clock::now() - t1).count();
+    const double seconds = secondsSince(t1);
     writeVolumeLevelSet(grid, opt, std::min({volume.spacing[0], volume.spacing[1], volume.spacing[2]}), input, output,
                         std::string("satherley-jones-") + volumeDistanceMethodName(opt.method) +
                             (opt.subvoxel ? "-subvoxel" : "-binary"));
@@ -221,7 +221,7 @@ void cookVolumeToSdf(OperatorArgs& args)
        << grid->activeVoxelCount() << " active voxels in the band\n"
        << "  time: " << fmt("%.2f", seconds) << " s (classify " << fmt("%.2f", st.secondsClassify)
        << ", transform " << fmt("%.2f", st.secondsTransform) << ", build " << fmt("%.2f", st.secondsBuild)
-       << "), " << fmt("%.2f", std::chrono::duration<double>(Clock::now() - t0).count()) << " s total\n";
+       << "), " << fmt("%.2f", secondsSince(t0)) << " s total\n";
     for (const std::string& w : info.warnings) args.err() << "levelforge: warning: " << input << ": " << w << "\n";
 }
 

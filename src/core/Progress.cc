@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // levelforge — progress reporting and interruption (see Progress.h).
 #include "detail/ProgressCheck.h"
+#include "detail/Timer.h"
 #include <levelforge/core/Progress.h>
 
 #include <levelforge/core/Exceptions.h>
@@ -32,7 +33,7 @@ void StderrProgress::end()
 {
     if (!mEnabled || mLast.load() < 0) return; // nothing printed: stay silent
     const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - mStart).count();
+        detail::secondsSince(mStart);
     std::fprintf(stderr, "levelforge: %s done (%.2f s)\n", mName.c_str(), seconds);
     std::fflush(stderr);
 }

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // levelforge — exact dense EDT (Felzenszwalb–Huttenlocher), brute force, and accuracy report.
 // See include/levelforge/volume/ExactDistanceTransform.h.
+#include "detail/Timer.h"
 #include "volume/DenseVolumeHelpers.h"
 
 #include <levelforge/volume/ExactDistanceTransform.h>
@@ -218,7 +219,6 @@ std::vector<DistanceTransformComparison> distanceTransformReport(const MaskVolum
                                                                  const DistanceTransformReportOptions& options)
 {
     requireValidVolume(inside, "distanceTransformReport");
-    using Clock = std::chrono::steady_clock;
     const int repeats = std::max(1, options.repeats);
     const MaskVolume features = transverseFeatures(inside);
     const DenseVolume<int8_t> sign = classification(inside, features);
@@ -227,9 +227,9 @@ std::vector<DistanceTransformComparison> distanceTransformReport(const MaskVolum
         double best = std::numeric_limits<double>::infinity();
         ScalarVolume result;
         for (int r = 0; r < repeats; ++r) {
-            const auto t0 = Clock::now();
+            const auto t0 = detail::Clock::now();
             result = f();
-            best = std::min(best, std::chrono::duration<double>(Clock::now() - t0).count());
+            best = std::min(best, detail::secondsSince(t0));
         }
         return std::make_pair(std::move(result), best);
     };

@@ -41,7 +41,9 @@
 
 namespace levelforge {
 
-/// What validateMesh() found. Lists of ids hold the first few (smallest) ids only.
+/// @brief What validateMesh() found.
+///
+/// Lists of ids hold the first few (smallest) ids only.
 struct MeshReport
 {
     static constexpr size_t kMaxListed = 10;                ///< ids kept per list
@@ -70,46 +72,75 @@ struct MeshReport
     std::vector<Vec3I> nonManifoldEdgeExamples;        ///< (a, b, uses)
     std::vector<Vec3I> inconsistentEdgeExamples;       ///< (a, b, 0)
 
-    /// Watertight and consistently oriented (see the header comment).
+    /// @brief Watertight and consistently oriented (see the header comment).
+    /// @return true when the mesh has at least one triangle and no boundary, non-manifold or
+    ///         inconsistently oriented edge
     bool closed() const
     {
         return triangles > 0 && boundaryEdges == 0 && nonManifoldEdges == 0 &&
                inconsistentlyOrientedEdges == 0;
     }
 
-    /// Euler characteristic V - E + F over used vertices and non-collapsed triangles
-    /// (2 per sphere-like closed part, 0 for a torus).
+    /// @brief Euler characteristic V - E + F over used vertices and non-collapsed triangles
+    ///        (2 per sphere-like closed part, 0 for a torus).
+    /// @return (vertices - unusedVertices) - edges + (triangles - collapsedTriangles)
     int64_t eulerCharacteristic() const
     {
         return int64_t(vertices - unusedVertices) - int64_t(edges) +
                int64_t(triangles - collapsedTriangles);
     }
 
-    /// Human-readable: a headline (source, counts, closed or not), then one indented line per
-    /// finding. No trailing newline.
+    /// @brief Human-readable report: a headline (source, counts, closed or not), then one
+    ///        indented line per finding.
+    /// @return the multi-line text, with no trailing newline
     std::string summary() const;
 
-    /// One line per finding, each starting with "<source>: " (what a command-line tool prints as
-    /// warnings); empty for a clean mesh.
+    /// @brief One line per finding, each starting with "<source>: " (what a command-line tool
+    ///        prints as warnings).
+    /// @return the lines; empty for a clean mesh
     std::vector<std::string> warnings() const;
 
-    /// The findings of summary() without the headline and without the source prefix.
+    /// @brief The findings of summary() without the headline and without the source prefix.
+    /// @return one line per finding; empty for a clean mesh
     std::vector<std::string> findings() const;
 };
 
-/// Checks @a mesh. Throws InvalidMeshError on fatal problems (see the header comment).
+/// @brief Checks @a mesh.
+///
+/// Throws InvalidMeshError on fatal problems (see the header comment); everything else is
+/// counted in the report. O(V + T), independent of the number of threads.
+/// @param[in] mesh  the mesh to check (world units; mesh.source names it in messages)
+/// @return the counts and examples of the non-fatal findings
+/// @throws InvalidMeshError no triangles, a vertex with a NaN/Inf coordinate, or a triangle index
+///         out of range (the message names mesh.source and the element)
 MeshReport validateMesh(const TriangleMesh& mesh);
 
-/// Only the fatal checks, cheap (one pass over faces and vertices): throws InvalidMeshError
-/// naming mesh.source and the element when the mesh has no triangles, a face refers to a vertex
-/// that does not exist, or a vertex has a NaN/Inf coordinate. The converters call it first.
+/// @brief Only the fatal checks, cheap (one pass over faces and vertices).
+///
+/// Throws InvalidMeshError naming mesh.source and the element when the mesh has no triangles, a
+/// face refers to a vertex that does not exist, or a vertex has a NaN/Inf coordinate. The
+/// converters call it first.
+/// @param[in] mesh  the mesh to check
+/// @throws InvalidMeshError no triangles, a vertex index out of range, or a non-finite vertex
+///         coordinate
 void requireUsableMesh(const TriangleMesh& mesh);
 
-/// A copy of @a mesh without its degenerate triangles (same test as validateMesh); vertices are
-/// kept as they are. @a removed, when given, receives the number of triangles removed.
+/// @brief A copy of @a mesh without its degenerate triangles (same test as validateMesh).
+///
+/// Vertices are kept as they are (indices stay valid), and so is mesh.source. @a removed, when
+/// given, receives the number of triangles removed. Triangles with an out-of-range index are kept
+/// (requireUsableMesh() reports them).
+/// @param[in]  mesh     the input mesh
+/// @param[out] removed  optional: the number of triangles removed (collapsed or zero-area)
+/// @return the filtered copy
 TriangleMesh withoutDegenerateTriangles(const TriangleMesh& mesh, uint64_t* removed = nullptr);
 
-/// True when triangle (a, b, c) is degenerate by validateMesh()'s test.
+/// @brief True when triangle (a, b, c) is degenerate by validateMesh()'s test:
+///        |(b-a) x (c-a)| <= MeshReport::kDegenerateRelativeArea * (longest edge)^2.
+/// @param[in] a  first corner, world units
+/// @param[in] b  second corner, world units
+/// @param[in] c  third corner, world units
+/// @return true for a (numerically) zero-area triangle, including one with repeated corners
 bool isDegenerateTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c);
 
 } // namespace levelforge

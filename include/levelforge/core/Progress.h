@@ -16,13 +16,29 @@
 
 namespace levelforge {
 
-/// Prints coarse progress to stderr ("levelforge: <stage> 40%"), at most every `minStep` percent.
+/// @brief Prints coarse progress to stderr ("levelforge: <stage> 40%"), at most every `minStep`
+///        percent.
+///
+/// Work that finishes within half a second prints nothing; a stage that printed anything ends
+/// with "levelforge: <stage> done (N.NN s)". It never asks to stop: wasInterrupted() is always
+/// false.
 class StderrProgress : public openvdb::util::NullInterrupter
 {
 public:
+    /// @brief A reporter printing at most once per @p minStep percent.
+    /// @param[in] minStep  the step between printed percentages, clamped to [1, 100]
+    /// @param[in] enabled  false: print nothing (a silent interrupter)
     explicit StderrProgress(int minStep = 10, bool enabled = true);
+    /// @brief Begins a stage: remembers its name and start time, resets the last printed percent.
+    /// @param[in] name  the stage name printed in each line; null or empty: "working"
     void start(const char* name = nullptr) override;
+    /// @brief Ends the stage: prints "<stage> done (N.NN s)" if any percentage was printed.
     void end() override;
+    /// @brief Reports progress; safe to call concurrently from TBB loops (one thread prints each
+    ///        new multiple of minStep).
+    /// @param[in] percent  progress of the current stage in [0, 100] (larger values count as 100);
+    ///                     < 0: no progress to report
+    /// @return false: this reporter never interrupts
     bool wasInterrupted(int percent = -1) override;
 
 private:

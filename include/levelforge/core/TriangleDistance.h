@@ -13,6 +13,7 @@
 
 namespace levelforge {
 
+/// @brief The answer of closestPointOnTriangle().
 struct TriangleClosestPoint
 {
     Vec3d point;                 ///< closest point on the triangle
@@ -20,7 +21,16 @@ struct TriangleClosestPoint
     TriangleFeature feature;     ///< Voronoi region holding `point`
 };
 
-/// Closest point on triangle (a, b, c) to p. Inline: it is the innermost loop of every method.
+/// @brief Closest point on triangle (a, b, c) to p.
+///
+/// Inline: it is the innermost loop of every method. Works in any units (world or index space)
+/// as long as all four points share them.
+/// @param[in] p  the query point
+/// @param[in] a  first corner of the triangle
+/// @param[in] b  second corner of the triangle
+/// @param[in] c  third corner of the triangle
+/// @return the closest point, its squared distance to @p p and the Voronoi region (vertex, edge
+///         or face) that holds it
 inline TriangleClosestPoint closestPointOnTriangle(const Vec3d& p, const Vec3d& a, const Vec3d& b,
                                                   const Vec3d& c)
 {
@@ -62,8 +72,13 @@ inline TriangleClosestPoint closestPointOnTriangle(const Vec3d& p, const Vec3d& 
     return make(a + ab * v + ac * w, TriangleFeature::Face);
 }
 
-/// Squared distance from p to the axis-aligned box [lo, hi] (0 inside). A lower bound of the
-/// distance to anything inside the box.
+/// @brief Squared distance from p to the axis-aligned box [lo, hi] (0 inside).
+///
+/// A lower bound of the distance to anything inside the box.
+/// @param[in] p   the query point
+/// @param[in] lo  the box's minimum corner (same units as @p p)
+/// @param[in] hi  the box's maximum corner (same units as @p p)
+/// @return the squared distance, in the units of @p p squared
 inline double boxDistanceSqr(const Vec3d& p, const Vec3d& lo, const Vec3d& hi)
 {
     double d2 = 0.0;

@@ -20,6 +20,7 @@ using Vec3d = openvdb::math::Vec3<double>;
 using Vec3I = openvdb::math::Vec3<uint32_t>;
 using BBoxd = openvdb::math::BBox<Vec3d>;
 
+/// @brief Vertex positions (world units) and triangles indexing them.
 struct TriangleMesh
 {
     std::vector<Vec3d> points;     ///< vertex positions, world units
@@ -30,7 +31,8 @@ struct TriangleMesh
     size_t triangleCount() const { return triangles.size(); }
     bool empty() const { return triangles.empty(); }
 
-    /// Bounding box of the vertices that triangles use (world units). Empty box if no triangles.
+    /// @brief Bounding box of the vertices that triangles use (world units).
+    /// @return the box; an empty box if there are no triangles
     BBoxd bounds() const
     {
         BBoxd b; // default-constructed BBox is empty (min = +max, max = -max)

@@ -34,15 +34,16 @@
 
 namespace levelforge {
 
-/// Options of meshToLevelSet(): everything is in GridSpec (voxel size or count, band widths in
-/// voxels or world units, grid name, voxel budget, interrupter). The widths are rounded to float
-/// (the band limits are stored in float) after conversion to voxels; maxVoxels bounds the
-/// estimated band voxels.
+/// @brief Options of meshToLevelSet(): everything is in GridSpec.
+///
+/// GridSpec holds the voxel size or count, band widths in voxels or world units, grid name, voxel
+/// budget and interrupter. The widths are rounded to float (the band limits are stored in float)
+/// after conversion to voxels; maxVoxels bounds the estimated band voxels.
 struct MeshToLevelSetOptions : GridSpec
 {
 };
 
-/// Counters in the spirit of the paper's Tables 1–3, filled by meshToLevelSet().
+/// @brief Counters in the spirit of the paper's Tables 1–3, filled by meshToLevelSet().
 struct MeshToLevelSetStats
 {
     double voxelSize = 0.0;               ///< world units
@@ -60,23 +61,41 @@ struct MeshToLevelSetStats
     /// Wall-clock seconds: set-up + pseudonormals + voxelization pass 1; numbering + list pass 2
     /// + sorting; distances; tree assembly and flood fill.
     double secondsVoxelize = 0, secondsLists = 0, secondsDistance = 0, secondsFinish = 0;
+    /// @brief Exact distance evaluations per output voxel (the cost of the culled search).
+    /// @return distanceEvaluations / activeVoxels, or 0 when there are no active voxels
     double evaluationsPerActiveVoxel() const
     {
         return activeVoxels ? double(distanceEvaluations) / double(activeVoxels) : 0.0;
     }
 };
 
-/// Converts a triangle mesh to an exact narrow-band level set (see the file comment).
+/// @brief Converts a triangle mesh to an exact narrow-band level set (see the file comment).
+///
 /// Throws InvalidArgumentError (bad options), InvalidMeshError (empty mesh, NaN, bad index),
 /// ResourceLimitError (band too large), InterruptedError.
+/// @param[in]  mesh     the surface, world units, counter-clockwise seen from outside; degenerate
+///                      (zero-area) triangles are skipped
+/// @param[in]  options  voxel size or count, band widths (voxels or world units), grid name,
+///                      voxel budget, interrupter (see MeshToLevelSetOptions)
+/// @param[out] stats    optional: counters and stage times of this run
+/// @return a GRID_LEVEL_SET FloatGrid named options.gridName, with a linear transform of the
+///         resolved voxel size; values in world units, negative inside, background
+///         exteriorWidth * voxelSize
+/// @throws InvalidArgumentError bad options (voxel size, voxel count, band widths)
+/// @throws InvalidMeshError empty mesh, NaN/Inf coordinate, bad index, or every triangle
+///         degenerate
+/// @throws ResourceLimitError band too large for maxVoxels, or a voxel size so small that index
+///         coordinates would pass 1e9
+/// @throws InterruptedError the interrupter asked to stop
 openvdb::FloatGrid::Ptr meshToLevelSet(const TriangleMesh& mesh,
                                        const MeshToLevelSetOptions& options = {},
                                        MeshToLevelSetStats* stats = nullptr);
 
-/// A level set and, for each of its active voxels, the offset from the voxel centre to the
-/// closest point of the mesh (index space, voxel units; the point of the triangle that decided
-/// the exact distance) and that triangle's index in mesh.triangles. Both grids have the same
-/// transform and active topology as the level set.
+/// @brief A level set and, for each of its active voxels, the offset from the voxel centre to
+///        the closest point of the mesh (index space, voxel units; the point of the triangle that
+///        decided the exact distance) and that triangle's index in mesh.triangles.
+///
+/// Both grids have the same transform and active topology as the level set.
 struct LevelSetWithClosestPoints
 {
     openvdb::FloatGrid::Ptr levelSet;
@@ -84,8 +103,19 @@ struct LevelSetWithClosestPoints
     openvdb::Int32Grid::Ptr closestTriangles;
 };
 
-/// meshToLevelSet() that also returns the closest-point offsets — the exact shell of vectors
-/// that the Vector expansion (docs/expansion.md, Satherley–Jones §4.3) propagates.
+/// @brief meshToLevelSet() that also returns the closest-point offsets — the exact shell of
+///        vectors that the Vector expansion (docs/expansion.md, Satherley–Jones §4.3) propagates.
+/// @param[in]  mesh     the surface, world units (as for meshToLevelSet())
+/// @param[in]  options  as for meshToLevelSet()
+/// @param[out] stats    optional: counters and stage times of this run
+/// @return the level set (identical to meshToLevelSet()'s), the closest-point offsets (index
+///         space, voxel units; grid named options.gridName + "_closest") and the closest
+///         triangles (grid named options.gridName + "_triangle", background -1)
+/// @throws InvalidArgumentError bad options
+/// @throws InvalidMeshError empty mesh, NaN/Inf coordinate, bad index, or every triangle
+///         degenerate
+/// @throws ResourceLimitError band too large, or index coordinates past 1e9
+/// @throws InterruptedError the interrupter asked to stop
 LevelSetWithClosestPoints meshToLevelSetWithClosestPoints(const TriangleMesh& mesh,
                                                           const MeshToLevelSetOptions& options = {},
                                                           MeshToLevelSetStats* stats = nullptr);

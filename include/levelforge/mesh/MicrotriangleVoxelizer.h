@@ -31,11 +31,14 @@
 
 namespace levelforge {
 
+/// @brief What voxelizeTriangle() did, summed over the triangles it was given.
 struct VoxelizerCounters
 {
     uint64_t microtriangles = 0;
     std::array<uint64_t, 4> cases{}; ///< microtriangles with I = 3, 2, 1, 0 (cases 1..4)
     uint64_t boxTests = 0;           ///< 2-D and 3-D separating-axis tests run
+    /// @brief Adds another set of counters to these (merging per-thread counters).
+    /// @param[in] o  the counters to add
     void add(const VoxelizerCounters& o)
     {
         microtriangles += o.microtriangles;
@@ -44,15 +47,32 @@ struct VoxelizerCounters
     }
 };
 
-/// Appends the cells (cell space) overlapped by triangle (a, b, c) to `cells`, each once, in
-/// a deterministic order (vertex scan, then cells found by the case 3/4 tests). A cell already
-/// found is never tested again. `counters` may be null.
+/// @brief Appends the cells (cell space) overlapped by triangle (a, b, c) to `cells`, each once,
+///        in a deterministic order (vertex scan, then cells found by the case 3/4 tests).
+///
+/// A cell already found is never tested again. `counters` may be null. Thread-safe (scratch
+/// memory is thread-local).
+/// @param[in]     a         first corner, cell space
+/// @param[in]     b         second corner, cell space
+/// @param[in]     c         third corner, cell space
+/// @param[in,out] cells     receives the overlapped cells, appended after its current contents
+///                          (which are neither read nor deduplicated against)
+/// @param[in,out] counters  optional: this triangle's microtriangles, cases and box tests are
+///                          added to it
 void voxelizeTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c,
                       std::vector<openvdb::math::Coord>& cells, VoxelizerCounters* counters = nullptr);
 
-/// Akenine-Möller triangle / axis-aligned box overlap test (all 13 axes). The box is
-/// [center - half, center + half]; `tolerance` > 0 makes the test conservative (reports
-/// overlap when the separation is at most `tolerance`), < 0 makes it strict.
+/// @brief Akenine-Möller triangle / axis-aligned box overlap test (all 13 axes).
+///
+/// The box is [center - half, center + half]; `tolerance` > 0 makes the test conservative
+/// (reports overlap when the separation is at most `tolerance`), < 0 makes it strict.
+/// @param[in] center     box centre
+/// @param[in] half       box half-extents along x, y, z
+/// @param[in] a          first corner of the triangle (same units as the box)
+/// @param[in] b          second corner of the triangle
+/// @param[in] c          third corner of the triangle
+/// @param[in] tolerance  separation still counted as overlap (same units); 0: touching counts
+/// @return true when the triangle and the box overlap (within @p tolerance)
 bool triangleBoxOverlap(const Vec3d& center, const Vec3d& half, const Vec3d& a, const Vec3d& b,
                         const Vec3d& c, double tolerance = 0.0);
 

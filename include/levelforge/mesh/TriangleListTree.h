@@ -26,28 +26,48 @@
 
 namespace levelforge {
 
+/// @brief The triangle list of every boundary cell (see the file comment).
 class TriangleListTree
 {
 public:
     using TreeType = openvdb::UInt32Tree;
 
+    /// @brief Builds the lists in two passes (see the file comment).
+    ///
     /// `cellPoints` are the mesh vertices in cell space; `triangles` index them; only the
     /// triangles listed in `use` (ids into `triangles`) are voxelized. Throws InterruptedError.
+    /// Parallel (TBB); the result does not depend on the number of threads.
+    /// @param[in]     cellPoints   mesh vertices in cell space (world / voxelSize + 0.5)
+    /// @param[in]     triangles    vertex indices into @p cellPoints
+    /// @param[in]     use          ids into @p triangles of the triangles to list (e.g. the
+    ///                             non-degenerate ones); the lists hold these ids
+    /// @param[in,out] counters     optional: the voxelizer counters of all triangles are added
+    /// @param[in]     interrupter  optional: polled during pass 1 (progress 0–15%). Not owned.
+    /// @return the tree and its lists
+    /// @throws InterruptedError the interrupter asked to stop during voxelization
     static TriangleListTree build(const std::vector<Vec3d>& cellPoints,
                                   const std::vector<Vec3I>& triangles,
                                   const std::vector<uint32_t>& use,
                                   VoxelizerCounters* counters = nullptr,
                                   openvdb::util::NullInterrupter* interrupter = nullptr);
 
-    /// Active voxels = boundary cells; value = cell ordinal.
+    /// @brief The cell tree: active voxels = boundary cells; value = cell ordinal.
     const TreeType& tree() const { return *mTree; }
     TreeType::Ptr treePtr() const { return mTree; }
     uint64_t cellCount() const { return mBegin.empty() ? 0 : mBegin.size() - 1; }
     uint64_t entryCount() const { return mIds.size(); }
 
-    /// The triangle ids overlapping the cell with this ordinal: [first, last).
+    /// @brief The triangle ids overlapping the cell with this ordinal: [first, last).
+    /// @param[in] ordinal  the cell's ordinal (its value in tree()), < cellCount()
+    /// @return a pointer to the first id of the list (sorted ascending)
     const uint32_t* listBegin(uint32_t ordinal) const { return mIds.data() + mBegin[ordinal]; }
+    /// @brief One past the last triangle id of the cell with this ordinal.
+    /// @param[in] ordinal  the cell's ordinal (its value in tree()), < cellCount()
+    /// @return a pointer one past the list's last id
     const uint32_t* listEnd(uint32_t ordinal) const { return mIds.data() + mBegin[ordinal + 1]; }
+    /// @brief The number of triangles overlapping the cell with this ordinal.
+    /// @param[in] ordinal  the cell's ordinal (its value in tree()), < cellCount()
+    /// @return listEnd(ordinal) - listBegin(ordinal)
     uint32_t listSize(uint32_t ordinal) const { return uint32_t(mBegin[ordinal + 1] - mBegin[ordinal]); }
 
     /// Wall-clock seconds of build(): pass 1 (voxelization and counting) and the rest (numbering,
@@ -55,7 +75,8 @@ public:
     double secondsVoxelize() const { return mSecondsVoxelize; }
     double secondsLists() const { return mSecondsLists; }
 
-    /// Bytes held by the tree and the arrays.
+    /// @brief Memory held by the tree and the arrays.
+    /// @return bytes (tree memory plus the capacity of the index arrays)
     size_t memoryUsage() const;
 
 private:

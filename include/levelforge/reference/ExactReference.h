@@ -1,11 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
-// levelforge — exact signed distance reference, for tests, benchmarks and accuracy reports.
-//
-// A bounding-volume hierarchy over the triangles answers closest-point queries exactly (double
-// precision, exhaustive pruning by box distance); the sign follows the same angle-weighted
-// pseudonormal rule as meshToLevelSet (Bærentzen & Aanæs 2005), so the two agree bit-for-bit in
-// sign on every voxel whose closest feature is unambiguous. A brute-force O(F) query is
-// provided too, to test the BVH itself.
+/// @file
+/// @brief Exact signed distance reference, for tests, benchmarks and accuracy reports: the test
+///        oracle every converter is measured against.
+///
+/// A bounding-volume hierarchy over the triangles answers closest-point queries exactly (double
+/// precision, exhaustive pruning by box distance); the sign follows the same angle-weighted
+/// pseudonormal rule as meshToLevelSet (Bærentzen & Aanæs 2005), so the two agree bit-for-bit in
+/// sign on every voxel whose closest feature is unambiguous. A brute-force O(F) query is
+/// provided too, to test the BVH itself. compareToReference() measures a level set against it
+/// and reports the band's errors (BandErrorReport).
 #pragma once
 
 #include <levelforge/core/PseudoNormals.h>
@@ -23,9 +26,15 @@ namespace detail {
 class Bvh;
 }
 
+/// @brief Exact closest point and signed distance to a triangle mesh (BVH or brute force), signed
+///        by the angle-weighted pseudonormal rule.
+///
+/// Ties between triangles at the same distance go to the lowest triangle id, so query() and
+/// bruteForce() give the same answer. Queries are const and may run concurrently.
 class ExactReference
 {
 public:
+    /// @brief The answer of a query.
     struct Result
     {
         double distance = 0.0;      ///< signed, world units (negative inside)
@@ -33,17 +42,31 @@ public:
         Vec3d closestPoint{0.0};    ///< world units
     };
 
+    /// @brief Computes the pseudonormals and builds the BVH over the non-degenerate triangles.
+    ///
     /// Keeps a reference to `mesh`, which must outlive this object. Degenerate triangles are
     /// ignored exactly as meshToLevelSet ignores them.
+    /// @param[in] mesh  the surface, world units, counter-clockwise seen from outside (a usable
+    ///                  mesh: indices in range, finite coordinates)
     explicit ExactReference(const TriangleMesh& mesh);
+    /// @brief Frees the BVH and the pseudonormals.
     ~ExactReference();
 
-    /// Exact closest point and signed distance (BVH).
+    /// @brief Exact closest point and signed distance (BVH).
+    /// @param[in] worldPoint  the query point, world units
+    /// @return the signed distance (negative inside), the closest triangle and point; a default
+    ///         Result (distance 0, triangle ~0u) when the mesh has no non-degenerate triangle
     Result query(const Vec3d& worldPoint) const;
+    /// @brief The signed distance of query().
+    /// @param[in] worldPoint  the query point, world units
+    /// @return the signed distance, world units, negative inside
     double signedDistance(const Vec3d& worldPoint) const { return query(worldPoint).distance; }
-    /// The same, by testing every triangle (slow; for testing the BVH).
+    /// @brief The same, by testing every triangle (slow; for testing the BVH).
+    /// @param[in] worldPoint  the query point, world units
+    /// @return the same Result as query() (ties go to the lowest triangle id in both)
     Result bruteForce(const Vec3d& worldPoint) const;
 
+    /// @brief The pseudonormals used for the sign.
     const PseudoNormals& pseudoNormals() const { return *mNormals; }
 
 private:
@@ -53,7 +76,7 @@ private:
     std::unique_ptr<detail::Bvh> mBvh;
 };
 
-/// Accuracy of a level set against the exact reference, in voxel units.
+/// @brief Accuracy of a level set against the exact reference, in voxel units.
 struct BandErrorReport
 {
     uint64_t checkedVoxels = 0;   ///< active voxels compared
@@ -64,9 +87,20 @@ struct BandErrorReport
     uint64_t extraVoxels = 0;     ///< active voxels whose exact distance lies outside the requested band
 };
 
-/// Compares every active voxel of `grid` (or every `stride`-th one, in a fixed order) with the
-/// reference, and checks the inactive face-neighbours of the band for voxels that should have
-/// been active given the band widths (in voxels). Parallel; deterministic.
+/// @brief Compares every active voxel of `grid` (or about one in `stride`, chosen by a fixed hash
+///        of the voxel coordinates) with the reference.
+///
+/// Also checks the inactive face-neighbours of the band for voxels that should have been active
+/// given the band widths (in voxels). Band membership and sign use a tolerance of 1e-6 voxel.
+/// Parallel; deterministic.
+/// @param[in] grid           the level set to check (world-unit values; its voxel size is taken
+///                           from the transform's x axis)
+/// @param[in] reference      the exact reference of the mesh the grid was made from
+/// @param[in] exteriorWidth  the requested exterior band half-width, voxels
+/// @param[in] interiorWidth  the requested interior band half-width, voxels
+/// @param[in] stride         1 (or 0): every active voxel; n > 1: about one voxel in n (the
+///                           neighbour check then covers only the sampled voxels)
+/// @return the error statistics (maximum and mean error, sign errors, missing and extra voxels)
 BandErrorReport compareToReference(const openvdb::FloatGrid& grid, const ExactReference& reference,
                                    double exteriorWidth, double interiorWidth, uint64_t stride = 1);
 

@@ -3,8 +3,7 @@
 /// @brief T4 scan conversion: triangle mesh → narrow-band signed distance FloatGrid by
 /// slicing tetrahedral shells with the z-planes of the grid.
 ///
-/// Paper: K. Erleben, H. Dohlmann, "Scan Conversion of Signed Distance Fields"
-///, Figures 8–9:
+/// Paper: K. Erleben, H. Dohlmann, "Scan Conversion of Signed Distance Fields", Figures 8–9:
 ///   1. shell: tetrahedra around every face, tagged with the face (TetrahedralShell.h, §3.3–3.5),
 ///      built in index space with eps = max(exteriorWidth, interiorWidth) voxels;
 ///   2. sweep: tetrahedra sorted by min z; for each z-slab of the grid (slabDepth planes) the
@@ -47,10 +46,12 @@
 
 namespace levelforge {
 
-/// Options of meshToLevelSetScan(). GridSpec gives the voxel size or count, the band widths
-/// (voxels or world units; rounded to float after conversion to voxels), the grid name, the
-/// voxel budget (estimate: surface area in voxels² × band width, as meshToLevelSet; it also
-/// bounds the rasterization work) and the interrupter.
+/// @brief Options of meshToLevelSetScan().
+///
+/// GridSpec gives the voxel size or count, the band widths (voxels or world units; rounded to
+/// float after conversion to voxels), the grid name, the voxel budget (estimate: surface area in
+/// voxels² × band width, as meshToLevelSet; it also bounds the rasterization work) and the
+/// interrupter.
 struct TetScanOptions : GridSpec
 {
     ShellMethod shell = ShellMethod::Obb;
@@ -71,7 +72,7 @@ struct TetScanOptions : GridSpec
     const SlabBackend* backend = nullptr;
 };
 
-/// Counters in the spirit of the paper's Figures 20–28.
+/// @brief Counters in the spirit of the paper's Figures 20–28.
 struct TetScanStats
 {
     double voxelSize = 0.0;
@@ -86,17 +87,32 @@ struct TetScanStats
     uint64_t voxelsRasterized = 0;  ///< (voxel, polygon) evaluations
     uint64_t activeVoxels = 0;
     double secondsShell = 0, secondsSort = 0, secondsSweep = 0, secondsFill = 0, secondsFinish = 0;
+    /// @brief Tetrahedra per non-degenerate face.
+    /// @return tetrahedra / triangles, or 0 when there are no triangles
     double tetrahedraPerFace() const { return triangles ? double(tetrahedra) / double(triangles) : 0.0; }
-    /// Voxels rasterized per output voxel (the overlap the paper's Figure 20 pays for).
+    /// @brief Voxels rasterized per output voxel (the overlap the paper's Figure 20 pays for).
+    /// @return voxelsRasterized / activeVoxels, or 0 when there are no active voxels
     double overlapFactor() const { return activeVoxels ? double(voxelsRasterized) / double(activeVoxels) : 0.0; }
 };
 
-/// The class behind meshToLevelSetScan(); holds the shell between calls to run().
+/// @brief The class behind meshToLevelSetScan(): holds the mesh (by reference) and the options;
+///        each run() builds the shell, sweeps and fills anew.
 class TetScanConverter
 {
 public:
+    /// @brief Stores the inputs; nothing is checked or computed until run().
+    /// @param[in] mesh     the surface, world units; kept by reference, it must outlive the converter
+    /// @param[in] options  the options (copied)
     TetScanConverter(const TriangleMesh& mesh, const TetScanOptions& options);
-    /// Builds the shell, sweeps, fills slabs, returns the grid (see the file comment).
+    /// @brief Builds the shell, sweeps, fills slabs, returns the grid (see the file comment).
+    /// @param[out] stats  optional: counters and stage times of this run
+    /// @return a GRID_LEVEL_SET FloatGrid named options.gridName, with a linear transform of the
+    ///         resolved voxel size; values in world units, negative inside
+    /// @throws InvalidArgumentError bad options (voxel size, band widths, slab sizes not
+    ///         multiples of 8 in [8, 512])
+    /// @throws InvalidMeshError empty mesh, NaN/Inf coordinate, bad index
+    /// @throws ResourceLimitError index coordinates out of range, band larger than maxVoxels
+    /// @throws InterruptedError the interrupter asked to stop
     openvdb::FloatGrid::Ptr run(TetScanStats* stats = nullptr);
 
 private:
@@ -104,10 +120,23 @@ private:
     TetScanOptions mOptions;
 };
 
-/// Converts a triangle mesh to a narrow-band level set by T4 scan conversion.
+/// @brief Converts a triangle mesh to a narrow-band level set by T4 scan conversion.
+///
 /// Throws InvalidArgumentError (bad options), InvalidMeshError (empty mesh, NaN, bad index),
 /// ResourceLimitError (index coordinates out of range, band larger than maxVoxels),
 /// InterruptedError (polled per slab, from inside the parallel loops).
+/// @param[in]  mesh     the surface, world units, counter-clockwise seen from outside; degenerate
+///                      (zero-area) triangles get no shell
+/// @param[in]  options  grid spec, shell method and coverage, slab sizes, conservative
+///                      rasterization, backend (see TetScanOptions)
+/// @param[out] stats    optional: counters and stage times of this run
+/// @return a GRID_LEVEL_SET FloatGrid named options.gridName, with a linear transform of the
+///         resolved voxel size; values in world units, negative inside, background
+///         exteriorWidth * voxelSize
+/// @throws InvalidArgumentError bad options (voxel size, band widths, slab sizes)
+/// @throws InvalidMeshError empty mesh, NaN/Inf coordinate, bad index
+/// @throws ResourceLimitError index coordinates out of range, band larger than maxVoxels
+/// @throws InterruptedError polled per slab, from inside the parallel loops
 openvdb::FloatGrid::Ptr meshToLevelSetScan(const TriangleMesh& mesh, const TetScanOptions& options = {},
                                            TetScanStats* stats = nullptr);
 

@@ -11,7 +11,7 @@
 ///  1. cells: the cells (8 samples) whose corners lie on both sides of the iso-value are found
 ///     among the leaves of the input tree and along the faces of its tiles whose side differs from
 ///     the background's (nowhere else can a constant tree region hold a crossing), one voxel
-///     dilated; their triangles are the interpolated surface (src/IsoSurfaceCells.h, the same
+///     dilated; their triangles are the interpolated surface (src/detail/IsoSurfaceCells.h, the same
 ///     triangulation as the dense SubvoxelShell.h), a triangle soup in index space × voxel size;
 ///  2. exact shell: the exact distance to that surface in a band of 1.5 voxels (VCVDT8; the dense
 ///     path's shell R is the 26-neighbourhood of the surface voxels, the same reach) with the
@@ -43,6 +43,7 @@
 
 namespace levelforge {
 
+/// @brief What sparseVolumeToLevelSet() did.
 struct SparseVolumeToLevelSetStats
 {
     uint64_t candidateCells = 0;  ///< cells examined (leaf and tile-face cells, dilated)
@@ -56,16 +57,34 @@ struct SparseVolumeToLevelSetStats
     double secondsSurface = 0, secondsExact = 0, secondsWiden = 0;
 };
 
-/// Converts a scalar grid to a level set as described above. Uses from `options`: iso,
-/// insideBelow, method (VCVDT8: exact band of min(1.5, width) voxels then the sparse VCVDT;
-/// Exact: the exact band at the full widths — its cost grows with the triangles within reach of
-/// each voxel, so wide exact bands on finely sampled surfaces are slow), exteriorWidth / interiorWidth (voxels), fillInterior
-/// (with either method the inside beyond the exact band comes from the sparse VCVDT),
-/// gridName, maxVoxels (limit on the band's voxels), interrupter; `subvoxel` must be true. The
-/// result has the input's transform. Throws InvalidArgumentError (another method, binary
-/// classification, non-uniform or non-linear transform, non-finite values — naming the voxel —,
-/// no surface at this iso-value), ResourceLimitError (band larger than maxVoxels),
-/// InterruptedError.
+/// @brief Converts a scalar grid to a level set as described above.
+///
+/// Uses from `options`: iso, insideBelow, method (VCVDT8: exact band of min(1.5, width) voxels
+/// then the sparse VCVDT; Exact: the exact band at the full widths — its cost grows with the
+/// triangles within reach of each voxel, so wide exact bands on finely sampled surfaces are
+/// slow), exteriorWidth / interiorWidth (in `units`, voxels by default), fillInterior (with
+/// either method the inside beyond the exact band comes from the sparse VCVDT), gridName,
+/// maxVoxels (limit on the band's voxels), interrupter; `subvoxel` must be true. The result has
+/// the input's transform. Throws InvalidArgumentError (another method, binary classification,
+/// non-uniform or non-linear transform, non-finite values — naming the voxel —, no surface at
+/// this iso-value), ResourceLimitError (band larger than maxVoxels), InterruptedError.
+/// @param[in]  field    the scalar grid: a linear transform with uniform, axis-aligned voxels;
+///                      finite values everywhere (voxels, tiles, background); the voxel size
+///                      comes from it
+/// @param[in]  options  iso, insideBelow, method (VCVDT8 or Exact), subvoxel (true),
+///                      exteriorWidth / interiorWidth (in GridSpec units: voxels by default; at
+///                      most 1e5 voxels), fillInterior, gridName, maxVoxels, interrupter;
+///                      voxelSize and voxelCount must stay 0
+/// @param[out] stats    optional: cell, triangle and voxel counts, the exact band's converter
+///                      statistics, stage times
+/// @return a GRID_LEVEL_SET FloatGrid named options.gridName with the input's transform;
+///         values in world units, negative inside
+/// @throws InvalidArgumentError another method, binary classification, voxelSize or voxelCount
+///         set, a band width not positive, non-uniform or non-linear transform, non-finite
+///         values (naming the voxel or tile), no surface at this iso-value
+/// @throws ResourceLimitError band larger than maxVoxels, or an iso-surface with more triangles
+///         than 32-bit indices allow
+/// @throws InterruptedError the interrupter asked to stop
 openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, const VolumeToLevelSetOptions& options,
                                                SparseVolumeToLevelSetStats* stats = nullptr);
 
