@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// levelforge_bench_adf: adaptively sampled distance fields (Yin, Liu, Wu 2011; issue 6).
+// levelforge_bench_adf: adaptively sampled distance fields (Yin, Liu, Wu 2011).
 //
 //   levelforge_bench_adf [--res 128,256,512] [--subdivide N] [--threads N] [--repeat N]
 //                        [--errors N] [--no-bounds] [--bound-stride N] [--png out.png] [--digest] mesh.obj ...

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// levelforge_bench_dt: the dense distance transforms of Satherley & Jones (issue 4), measured
+// levelforge_bench_dt: the dense distance transforms of Satherley & Jones, measured
 // the way the paper's tables are: every chamfer transform (Table 1), EVDT / EVDT full grid /
 // VCVDT (Tables 2, 4, 5) and the 8-pass VCVDT (Table 6), each on a signed field (features =
 // transverse voxels, sign by Eq. 5-6) against the exact EDT, plus throughput (Mvoxels/s) of the

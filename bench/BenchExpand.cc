@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // levelforge_bench_expand: widening an exact narrow band (half-width 3) to 20 and 60 voxels,
 // levelforge::expandLevelSet (fast sweeping on sparse topology) side by side with
-// openvdb::tools::dilateSdf, both measured against the exact reference (issue 3).
+// openvdb::tools::dilateSdf, both measured against the exact reference.
 //
 //   levelforge_bench_expand [--res 256,512] [--widths 20,60] [--stride 31] [--no-openvdb]
 //                           [--methods sweep,vector] [--repeat N] [--no-accuracy] [--threads N]

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// levelforge_bench_scan: T4 scan conversion (Erleben & Dohlmann; issue 5), each tetrahedral shell,
+// levelforge_bench_scan: T4 scan conversion (Erleben & Dohlmann), each tetrahedral shell,
 // side by side with the exact Chang path (levelforge::meshToLevelSet) and
 // openvdb::tools::meshToLevelSet at equal band, all measured against the exact reference.
 //

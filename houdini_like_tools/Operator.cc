@@ -451,6 +451,8 @@ bool OperatorArgs::isSet(const std::string& name) const
 
 bool OperatorArgs::has(const std::string& name) const
 {
+    // Helpers shared by several operators ask before they read; an undeclared name has no value.
+    if (!mSpec->findParam(name)) return false;
     return isSet(name) || mDefaults.count(name) != 0;
 }
 

@@ -177,7 +177,8 @@ public:
 
     /// True if the parameter was given explicitly (not just defaulted).
     bool isSet(const std::string& name) const;
-    /// True if the parameter has a value (given, or declared with a default).
+    /// True if the parameter has a value (given, or declared with a default); false for a name the
+    /// operator does not declare (so helpers shared by several operators can ask first).
     bool has(const std::string& name) const;
 
     int64_t getInt(const std::string& name) const;

@@ -4,7 +4,10 @@
 #include "TestUtil.h"
 
 #include "Operator.h"
+#include "GridParams.h"
 #include "OperatorRegistry.h"
+
+#include <levelforge/io/VolumeIO.h>
 
 #include <cmath>
 #include <filesystem>
@@ -384,4 +387,65 @@ TEST(Operators, CliReferenceIsCurrent)
                   std::string::npos)
             << "docs/cli.md is out of date for operator " << op->name();
     }
+}
+
+TEST(Operators, SharedHelpersAskBeforeReading)
+{
+    // The volume loader is shared by volume-to-sdf and dt-report; it asks has() for parameters
+    // only one of them declares. has() is false for an undeclared name, so dt-report reads files.
+    const OperatorSpec* dt = OperatorRegistry::global().find("dt-report");
+    ASSERT_TRUE(dt);
+    OperatorArgs args(*dt);
+    EXPECT_FALSE(args.has("exterior-band"));
+    EXPECT_TRUE(args.has("iso"));
+    EXPECT_THROW(args.isSet("exterior-band"), UsageError);
+
+    const fs::path dir = levelforge_test::scratchDir("ops_dt_report_file");
+    const std::string path = (dir / "ball.nii").string();
+    levelforge::ScalarVolume ball;
+    ball.dims = openvdb::Coord(24, 20, 22);
+    ball.spacing = openvdb::Vec3d(1.0);
+    ball.data.resize(ball.voxelCount());
+    for (int k = 0; k < 22; ++k)
+        for (int j = 0; j < 20; ++j)
+            for (int i = 0; i < 24; ++i)
+                ball(i, j, k) = float(8.0 - std::sqrt((i - 11.5) * (i - 11.5) + (j - 9.7) * (j - 9.7) +
+                                                      (k - 10.2) * (k - 10.2)));
+    levelforge::writeNifti(path, ball);
+    const CliResult r = cli({"dt-report", path, "--iso", "0"});
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("VCVDT8"), std::string::npos) << r.out;
+}
+
+TEST(Operators, GridParameterGroupIsSharedAndRead)
+{
+    // mesh-to-sdf, mesh-to-adf and volume-to-sdf declare the GridSpec parameters from one group.
+    for (const char* name : {"mesh-to-sdf", "mesh-to-adf", "volume-to-sdf"}) {
+        const OperatorSpec* spec = OperatorRegistry::global().find(name);
+        ASSERT_TRUE(spec) << name;
+        const Param* g = spec->findParam("grid-name");
+        ASSERT_TRUE(g) << name;
+        EXPECT_EQ(g->label, "Grid Name") << name;
+    }
+    const OperatorSpec& spec = meshToSdf();
+    OperatorArgs args(spec);
+    args.set("voxel-size", "0.25").set("exterior-band", "0.5").set("interior-band", "4").setFlag("world-units");
+    args.set("grid-name", "solid");
+    levelforge::GridSpec grid;
+    readGridParams(args, grid);
+    EXPECT_EQ(grid.voxelSize, 0.25);
+    EXPECT_EQ(grid.voxelCount, 0);
+    EXPECT_EQ(grid.exteriorWidth, 0.5);
+    EXPECT_EQ(grid.interiorWidth, 4.0);
+    EXPECT_EQ(grid.units, levelforge::WidthUnits::World);
+    EXPECT_EQ(grid.gridName, "solid");
+    EXPECT_DOUBLE_EQ(grid.widthInVoxels(grid.exteriorWidth, grid.voxelSize), 2.0);
+
+    const OperatorSpec* vol = OperatorRegistry::global().find("volume-to-sdf");
+    OperatorArgs vargs(*vol);
+    levelforge::GridSpec vgrid;
+    readGridParams(vargs, vgrid); // no --voxel-size / --voxel-count: the volume brings its spacing
+    EXPECT_EQ(vgrid.voxelSize, 0.0);
+    EXPECT_EQ(vgrid.voxelCount, 0);
+    EXPECT_EQ(vgrid.exteriorWidth, 3.0);
 }
