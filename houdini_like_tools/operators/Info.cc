@@ -3,6 +3,7 @@
 #include "Operator.h"
 #include "OperatorText.h"
 
+#include <levelforge/core/Metadata.h>
 #include <levelforge/io/VdbIO.h>
 
 #include <openvdb/openvdb.h>
@@ -71,8 +72,8 @@ void describeGrid(std::ostream& os, const openvdb::GridBase& grid)
         os << buf;
     }
     os << "\n";
-    const std::string ext = metaText(grid, "levelforge:exterior_band_voxels");
-    const std::string in = metaText(grid, "levelforge:interior_band_voxels");
+    const std::string ext = metaText(grid, meta::kExteriorBandVoxels);
+    const std::string in = metaText(grid, meta::kInteriorBandVoxels);
     if (!ext.empty() || !in.empty()) {
         os << "  band (voxels):  exterior " << (ext.empty() ? "?" : ext) << ", interior "
            << (in.empty() ? "?" : in) << "\n";
