@@ -7,11 +7,7 @@ namespace levelforge::ops {
 
 TriangleMesh readMeshInput(const std::string& name, MeshReadInfo* info)
 {
-    if (isBuiltinMeshName(name)) {
-        TriangleMesh mesh = makeBuiltinMesh(name);
-        if (mesh.source.empty()) mesh.source = name;
-        return mesh;
-    }
+    if (isBuiltinMeshName(name)) return makeBuiltinMesh(name); // source set by the generator
     if (info) return readMesh(name, *info);
     return readMesh(name);
 }

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <random>
+#include <sstream>
 #include <string>
 
 namespace levelforge_test {
@@ -57,6 +58,17 @@ inline levelforge::MaskVolume randomMask(const openvdb::Coord& dims, double dens
     std::uniform_real_distribution<double> u(0.0, 1.0);
     for (auto& v : m.data) v = u(rng) < density ? 1 : 0;
     return m;
+}
+
+/// Lines of @p text that start with @p prefix (e.g. "levelforge: error:").
+inline int countLines(const std::string& text, const std::string& prefix)
+{
+    int n = 0;
+    std::istringstream is(text);
+    for (std::string line; std::getline(is, line);) {
+        if (line.rfind(prefix, 0) == 0) ++n;
+    }
+    return n;
 }
 
 } // namespace levelforge_test

@@ -72,11 +72,10 @@ void cookExpand(OperatorArgs& args)
     const double seconds = secondsSince(t1);
 
     const double h = out->voxelSize()[0];
-    const double toVoxels = opt.units == WidthUnits::World ? 1.0 / h : 1.0;
     const double bg = out->background() / h;
     const bool box = opt.domain == ExpansionDomain::BoundingBox;
-    const double ext = box ? bg : opt.exteriorWidth * toVoxels;
-    const double in = (box || opt.fillInterior) ? bg : opt.interiorWidth * toVoxels;
+    const double ext = box ? bg : opt.widthInVoxels(opt.exteriorWidth, h);
+    const double in = (box || opt.fillInterior) ? bg : opt.widthInVoxels(opt.interiorWidth, h);
     stampLevelSetMetadata(*out, ext, in, input, vector ? kVectorMethod : kMethod);
     openvdb::GridPtrVec result;
     for (const auto& g : *grids) result.push_back(g == grid ? out : g);

@@ -99,8 +99,6 @@ openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
                                    "; a level set needs a positive background");
     }
     checkGridSpec(opt);
-    // widths to voxels as w * (1 / h), not GridSpec::widthInVoxels()'s w / h (may differ in the last bit)
-    const double toVoxels = opt.units == WidthUnits::World ? 1.0 / h : 1.0;
     checkWidth(opt.exteriorWidth, "exteriorWidth");
     if (!opt.fillInterior) checkWidth(opt.interiorWidth, "interiorWidth");
     checkWidth(opt.coverageMargin, "coverageMargin", true);
@@ -116,9 +114,9 @@ openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
         throw InvalidArgumentError("expandLevelSet: maxIterations must be >= 1, got " +
                                    std::to_string(opt.maxIterations));
     }
-    const double wExt = opt.exteriorWidth * toVoxels;
-    const double wInt = opt.fillInterior ? 0.0 : opt.interiorWidth * toVoxels;
-    const double bboxMargin = opt.boundingBoxMargin * toVoxels;
+    const double wExt = opt.widthInVoxels(opt.exteriorWidth, h);
+    const double wInt = opt.fillInterior ? 0.0 : opt.widthInVoxels(opt.interiorWidth, h);
+    const double bboxMargin = opt.widthInVoxels(opt.boundingBoxMargin, h);
     constexpr double kMaxWidth = 100000.0;
     for (double w : {wExt, wInt, bboxMargin}) {
         if (w > kMaxWidth) {

@@ -24,6 +24,8 @@ using levelforge_test::scratchDir;
 
 #ifdef LEVELFORGE_CLI_PATH
 
+using levelforge_test::countLines;
+
 namespace {
 
 std::string readText(const fs::path& path)
@@ -59,16 +61,6 @@ CliRun runLevelforge(const fs::path& dir, const std::vector<std::string>& args)
     r.out = readText(outFile);
     r.err = readText(errFile);
     return r;
-}
-
-int countLines(const std::string& text, const std::string& prefix)
-{
-    int n = 0;
-    std::istringstream is(text);
-    for (std::string line; std::getline(is, line);) {
-        if (line.rfind(prefix, 0) == 0) ++n;
-    }
-    return n;
 }
 
 std::vector<std::string> listDir(const fs::path& dir)

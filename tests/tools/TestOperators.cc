@@ -19,6 +19,8 @@
 namespace fs = std::filesystem;
 using namespace levelforge::ops;
 
+using levelforge_test::countLines;
+
 namespace {
 
 const OperatorSpec& meshToSdf()
@@ -26,16 +28,6 @@ const OperatorSpec& meshToSdf()
     const OperatorSpec* spec = OperatorRegistry::global().find("mesh-to-sdf");
     if (!spec) throw std::runtime_error("mesh-to-sdf is not registered");
     return *spec;
-}
-
-int countLines(const std::string& text, const std::string& prefix)
-{
-    int n = 0;
-    std::istringstream is(text);
-    for (std::string line; std::getline(is, line);) {
-        if (line.rfind(prefix, 0) == 0) ++n;
-    }
-    return n;
 }
 
 struct CliResult

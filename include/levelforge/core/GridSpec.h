@@ -51,10 +51,11 @@ struct GridSpec
     /// @brief A width of this spec in voxels.
     /// @param[in] width      exteriorWidth or interiorWidth (or another width in `units`)
     /// @param[in] voxelSize  the resolved voxel edge length, world units (> 0)
-    /// @return @p width itself for WidthUnits::Voxels, @p width / @p voxelSize for World.
+    /// @return @p width itself for WidthUnits::Voxels, @p width × (1 / @p voxelSize) for World
+    ///         (the product, as expandLevelSet always computed it, so all users agree to the bit).
     double widthInVoxels(double width, double voxelSize) const
     {
-        return units == WidthUnits::World ? width / voxelSize : width;
+        return units == WidthUnits::World ? width * (1.0 / voxelSize) : width;
     }
 };
 
