@@ -2,16 +2,58 @@
 // levelforge — Ctrl-C for the command line (see Interrupt.h).
 #include "Interrupt.h"
 
+#include "OperatorRegistry.h" // kExitInterrupted
+
+// The library's private atomic writer (its signal-safe table of live temporary files). Included
+// by a relative path: levelforge_ops does not have src/ on its include path.
+#include "detail/AtomicFile.h"
+
+#include <atomic>
+#include <cerrno>
 #include <csignal>
+
+#include <unistd.h>
 
 namespace levelforge::ops {
 namespace {
 
 volatile std::sig_atomic_t gInterrupted = 0;
+std::atomic<int> gSignalCount{0};
+static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a lock-free counter");
+
+/// write() all of a literal to stderr, ignoring errors (async-signal-safe).
+template<size_t N>
+void writeStderr(const char (&text)[N])
+{
+    const char* p = text;
+    size_t left = N - 1;
+    while (left > 0) {
+        const ssize_t n = ::write(STDERR_FILENO, p, left);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) return;
+        p += n;
+        left -= size_t(n);
+    }
+}
 
 extern "C" void onInterruptSignal(int)
 {
+    const int savedErrno = errno;
     gInterrupted = 1;
+    const int count = gSignalCount.fetch_add(1) + 1;
+    // First: no output may appear from now on. Then: a write in progress cannot be stopped
+    // gracefully (OpenVDB writes in one blocking call), so remove its temporary file and end.
+    detail::abortWrites();
+    const int live = detail::removeLiveTemporaryFiles();
+    if (live > 0) {
+        writeStderr("levelforge: error: interrupted while writing; the partial output was removed\n");
+        ::_exit(kExitInterrupted);
+    }
+    if (count >= 2) {
+        writeStderr("levelforge: error: interrupted\n");
+        ::_exit(kExitInterrupted);
+    }
+    errno = savedErrno;
 }
 
 } // namespace
@@ -21,7 +63,11 @@ void installInterruptHandlers()
     struct sigaction action {};
     action.sa_handler = onInterruptSignal;
     sigemptyset(&action.sa_mask);
-    action.sa_flags = SA_RESETHAND; // a second signal gets the default action: exit at once
+    sigaddset(&action.sa_mask, SIGINT);
+    sigaddset(&action.sa_mask, SIGTERM);
+    // No SA_RESETHAND: a second signal must still remove the temporary files before the
+    // process ends (the handler does, then _exit(130)).
+    action.sa_flags = SA_RESTART;
     for (int sig : {SIGINT, SIGTERM}) {
         // A signal ignored by whoever started us (nohup, background jobs of a script) stays
         // ignored, as with any well-behaved Unix tool.

@@ -1,10 +1,27 @@
 // SPDX-License-Identifier: Apache-2.0
-// levelforge — Ctrl-C for the command line.
+// levelforge — Ctrl-C (SIGINT) and SIGTERM for the command line.
 //
-// The first SIGINT or SIGTERM asks the running operator to stop: CliProgress::wasInterrupted()
-// returns true at the next progress check, the algorithm throws InterruptedError and discards
-// its partial result, nothing is written, and the CLI exits with status 130. A second signal
-// ends the process at once (the default action is restored after the first).
+// The first SIGINT or SIGTERM asks the running operator to stop:
+//  - while it computes, CliProgress::wasInterrupted() returns true at the next progress check,
+//    the algorithm throws InterruptedError and discards its partial result, nothing is
+//    written, and the CLI prints "levelforge: error: interrupted" and exits with status 130;
+//  - the handler also calls detail::abortWrites(): an output file whose writing starts later,
+//    or whose rename has not begun yet, is not written (its AtomicFile removes the temporary
+//    file and throws InterruptedError; same message, same status);
+//  - while an output is being written (an AtomicFile holds a live temporary file, e.g. during
+//    OpenVDB's one blocking io::File::write call, which cannot be interrupted), the handler
+//    itself unlinks every live temporary file (detail::removeLiveTemporaryFiles()), writes
+//    "levelforge: error: interrupted while writing; the partial output was removed" to stderr
+//    and ends the process with _exit(130). The target file is left as it was before.
+// A second signal ends the process at once the same way (temporary files removed, one error
+// line, status 130), whatever it is doing.
+//
+// Async-signal safety: the handler uses only a lock-free std::atomic counter, a volatile
+// sig_atomic_t flag, the lock-free atomics of detail's fixed-size table of live temporary
+// paths, unlink(), write() and _exit(); it allocates nothing and takes no lock. errno is
+// preserved when it returns. SIGINT and SIGTERM are blocked while it runs (no nesting on one
+// thread), and SA_RESTART keeps system calls of the computing threads from failing with EINTR.
+// A signal that was ignored when the process started (nohup, background jobs) stays ignored.
 #pragma once
 
 #include <levelforge/core/Progress.h>

@@ -4,6 +4,10 @@
 
 #include "OperatorRegistry.h"
 
+// The library's output rule (detail::resolveOutputTarget). Included by a relative path:
+// levelforge_ops does not have src/ on its include path.
+#include "detail/AtomicFile.h"
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -13,6 +17,9 @@
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <system_error>
+
+#include <sys/stat.h>
 
 namespace levelforge::ops {
 
@@ -40,6 +47,23 @@ bool validName(const std::string& name)
         if (!((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-')) return false;
     }
     return name.back() != '-';
+}
+
+/// True if @p input names an existing file that is the same file as the output @p output
+/// (resolved: its link-resolved target): same device and inode when both exist, else the same
+/// canonical path.
+bool sameFile(const std::string& input, const detail::OutputTarget& output)
+{
+    struct stat in {};
+    if (::stat(input.c_str(), &in) != 0) return false; // builtin:..., a number, a missing file
+    struct stat out {};
+    if (::stat(output.resolved.c_str(), &out) == 0) {
+        return in.st_dev == out.st_dev && in.st_ino == out.st_ino;
+    }
+    std::error_code ec1, ec2;
+    const std::filesystem::path a = std::filesystem::weakly_canonical(input, ec1);
+    const std::filesystem::path b = std::filesystem::weakly_canonical(output.resolved, ec2);
+    return !ec1 && !ec2 && a == b;
 }
 
 std::string describe(const Param& p)
@@ -273,6 +297,12 @@ OperatorSpec& OperatorSpec::example(std::string commandLine)
 OperatorSpec& OperatorSpec::cook(CookFunction fn)
 {
     mCook = std::move(fn);
+    return *this;
+}
+
+OperatorSpec& OperatorSpec::allowInPlace(bool on)
+{
+    mInPlace = on;
     return *this;
 }
 
@@ -526,9 +556,44 @@ void OperatorArgs::checkComplete() const
     }
 }
 
+void OperatorArgs::checkOutputs() const
+{
+    std::vector<std::pair<const Port*, detail::OutputTarget>> checked;
+    for (const Port& port : mSpec->outputs()) {
+        auto it = mPorts.find(port.name);
+        if (it == mPorts.end() || it->second.empty()) continue; // checkComplete() reports it
+        const std::string& path = it->second;
+        detail::OutputTarget target =
+            detail::resolveOutputTarget(path, "cannot write '" + path + "'");
+        if (target.discard) continue; // /dev/null: written through, never replaced
+        if (!mSpec->inPlaceAllowed()) {
+            for (const Port& in : mSpec->inputs()) {
+                auto inIt = mPorts.find(in.name);
+                if (inIt == mPorts.end() || !sameFile(inIt->second, target)) continue;
+                const std::string which = mSpec->inputs().size() == 1
+                                              ? std::string("the input")
+                                              : "the input <" + in.name + "> ('" +
+                                                    inIt->second + "')";
+                throw UsageError("output '" + path + "' is the same file as " + which +
+                                 "; choose another name");
+            }
+        }
+        for (const auto& [other, otherTarget] : checked) {
+            const bool same = otherTarget.resolved == target.resolved ||
+                              sameFile(otherTarget.resolved, target);
+            if (same) {
+                throw UsageError("outputs <" + other->name + "> and <" + port.name +
+                                 "> are the same file '" + path + "'; choose another name");
+            }
+        }
+        checked.emplace_back(&port, std::move(target));
+    }
+}
+
 void OperatorArgs::cook()
 {
     checkComplete();
+    checkOutputs();
     mSpec->cookFunction()(*this);
 }
 

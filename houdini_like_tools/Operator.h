@@ -26,6 +26,13 @@
 //
 // Names are kebab-case and become `--name` options; inputs and outputs become positionals, in
 // declaration order.
+//
+// Outputs are files. Before any operator cooks, OperatorArgs::cook() checks every output once,
+// for all operators (OperatorArgs::checkOutputs()): an output that exists and is not a regular
+// file (a directory, a device other than /dev/null, a FIFO, a socket) is refused, and so is an
+// output that is the same file as one of the operator's inputs (same device and inode, links
+// and hard links included) or as another output. An operator that documents in-place writing
+// declares it with OperatorSpec::allowInPlace().
 #pragma once
 
 #include <levelforge/core/Exceptions.h>
@@ -131,6 +138,9 @@ public:
     OperatorSpec& params(const std::vector<Param>& ps);
     OperatorSpec& example(std::string commandLine); ///< shown in --help
     OperatorSpec& cook(CookFunction fn);
+    /// Allows an output to be the same file as an input (the operator reads its inputs
+    /// completely before it writes, and says so in its help). Off by default.
+    OperatorSpec& allowInPlace(bool on = true);
 
     const std::string& name() const { return mName; }
     const std::string& help() const { return mHelp; }
@@ -140,6 +150,8 @@ public:
     const std::vector<Param>& params() const { return mParams; }
     const std::vector<std::string>& examples() const { return mExamples; }
     const CookFunction& cookFunction() const { return mCook; }
+    /// True if allowInPlace() was declared.
+    bool inPlaceAllowed() const { return mInPlace; }
 
     /// nullptr if there is no such parameter.
     const Param* findParam(const std::string& name) const;
@@ -155,6 +167,7 @@ private:
     std::vector<Param> mParams;
     std::vector<std::string> mExamples;
     CookFunction mCook;
+    bool mInPlace = false;
 };
 
 /// Parameter values and positional paths for one cook, plus the streams to report on.
@@ -192,7 +205,17 @@ public:
     /// Throws UsageError if a declared positional is missing or two mutually exclusive
     /// parameters were both given.
     void checkComplete() const;
-    /// checkComplete(), then runs the operator's cook function.
+    /// Checks the outputs before any work (see the file comment), each output path as given:
+    /// @throws IoError "cannot write '<out>': '<out>' is a FIFO (named pipe), not a regular
+    ///         file; ..." for an existing output that is neither a regular file nor /dev/null
+    ///         (the library's output rule, detail::resolveOutputTarget());
+    /// @throws UsageError "output '<out>' is the same file as the input; choose another name"
+    ///         (with several inputs: "... as the input <name> ('<path>'); ..."), unless the
+    ///         operator allowInPlace(); "outputs <a> and <b> are the same file '<out>'; ...".
+    /// Inputs that are not existing files (builtin:sphere, coordinates) never match. /dev/null
+    /// may be given as any number of outputs.
+    void checkOutputs() const;
+    /// checkComplete(), checkOutputs(), then runs the operator's cook function.
     void cook();
 
     std::ostream& out() const { return *mOut; }

@@ -2,6 +2,8 @@
 // levelforge — operator registry and the generated command line (see OperatorRegistry.h).
 #include "OperatorRegistry.h"
 
+#include "detail/MessageText.h"
+
 #include <levelforge/io/VdbIO.h> // generatorString()
 
 #include <CLI/CLI.hpp>
@@ -224,7 +226,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     } catch (const std::bad_alloc&) {
         return report(err, "out of memory", kExitFailure);
     } catch (const std::exception& e) {
-        return report(err, e.what(), kExitFailure);
+        // our own messages are short; a dependency's can be gigabytes (a corrupt file)
+        return report(err, message_internal::cutDependencyMessage(e.what(), 2000), kExitFailure);
     } catch (...) {
         return report(err, "unknown failure", kExitFailure);
     }

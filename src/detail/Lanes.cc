@@ -2,23 +2,111 @@
 // Deterministic lanes: lane counts, the lane runner and the row wavefront (see Lanes.h).
 #include "detail/Lanes.h"
 
+#include "detail/MessageText.h"
+
 #include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <condition_variable>
 #include <exception>
 #include <memory>
+#include <mutex>
+#include <system_error>
 #include <vector>
 
 namespace levelforge::detail {
 
-void runLanes(int lanes, const std::function<void(int)>& lane)
+namespace {
+
+/// testing::failLaneThreadsFrom(): 0 = off.
+std::atomic<int> gFailLaneThreadsFrom{0};
+
+/// The start gate of runLanes(): every lane thread waits here until all of them exist (go) or
+/// one could not be created (abort: leave without running the lane).
+class StartGate
 {
+public:
+    void open(bool go)
+    {
+        {
+            std::lock_guard<std::mutex> lock(mMutex);
+            mState = go ? State::Go : State::Abort;
+        }
+        mCondition.notify_all();
+    }
+    /// Blocks until open(); true for go.
+    bool pass()
+    {
+        std::unique_lock<std::mutex> lock(mMutex);
+        mCondition.wait(lock, [this] { return mState != State::Wait; });
+        return mState == State::Go;
+    }
+
+private:
+    enum class State { Wait, Go, Abort };
+    std::mutex mMutex;
+    std::condition_variable mCondition;
+    State mState = State::Wait;
+};
+
+} // namespace
+
+namespace testing {
+
+void failLaneThreadsFrom(int firstLane) { gFailLaneThreadsFrom.store(std::max(0, firstLane)); }
+
+} // namespace testing
+
+void runLanes(int lanes, const std::function<void(int)>& lane, std::atomic<bool>* stop)
+{
+    if (lanes <= 1) {
+        lane(0);
+        return;
+    }
+    StartGate gate;
+    std::mutex errorMutex;
+    std::exception_ptr error;
+    // Runs one lane; an exception is kept (the first one) and stops the other lanes.
+    auto body = [&](int t) {
+        try {
+            lane(t);
+        } catch (...) {
+            {
+                std::lock_guard<std::mutex> lock(errorMutex);
+                if (!error) error = std::current_exception();
+            }
+            if (stop) stop->store(true, std::memory_order_release);
+        }
+    };
+
     std::vector<std::thread> threads;
-    threads.reserve(size_t(std::max(0, lanes - 1)));
-    for (int t = 1; t < lanes; ++t) threads.emplace_back(lane, t);
-    lane(0);
+    std::string startFailure;
+    try {
+        threads.reserve(size_t(lanes - 1));
+        for (int t = 1; t < lanes; ++t) {
+            const int failFrom = gFailLaneThreadsFrom.load(std::memory_order_relaxed);
+            if (failFrom > 0 && t >= failFrom) {
+                throw std::system_error(std::make_error_code(std::errc::resource_unavailable_try_again),
+                                        "thread creation refused (test hook)");
+            }
+            threads.emplace_back([&gate, &body, t] {
+                if (gate.pass()) body(t);
+            });
+        }
+    } catch (const std::exception& e) { // std::system_error (no more threads), std::bad_alloc
+        startFailure = "cannot start lane thread " + std::to_string(threads.size() + 1) + " of " +
+                       std::to_string(lanes) + ": " + message_internal::cutDependencyMessage(e.what());
+    }
+    if (!startFailure.empty()) {
+        gate.open(false); // the threads that exist leave without running their lane
+        for (auto& th : threads) th.join();
+        throw LaneStartError(startFailure);
+    }
+    gate.open(true);
+    body(0);
     for (auto& th : threads) th.join();
+    if (error) std::rethrow_exception(error);
 }
 
 int defaultLaneCount()
@@ -43,46 +131,33 @@ int laneCountFor(int nx, int ny, int threads)
     return std::max(1, std::min(lanes, ny));
 }
 
-bool runRowWavefront(int stages, int rows, int chunks, int lookahead, int lanes,
-                     const std::function<void(int, int, int)>& work,
-                     const std::function<bool(int)>& beginStage)
-{
-    if (stages <= 0 || rows <= 0) return true;
-    chunks = std::max(1, chunks);
-    lookahead = std::max(0, lookahead);
-    lanes = std::max(1, std::min(lanes, rows));
-    if (lanes == 1) {
-        for (int s = 0; s < stages; ++s) {
-            if (beginStage && !beginStage(s)) return false;
-            for (int r = 0; r < rows; ++r)
-                for (int c = 0; c < chunks; ++c) work(s, r, c);
-        }
-        return true;
-    }
+namespace {
 
+/// runRowWavefront() on lanes > 1 threads. Sets @p ran once any lane started (a
+/// LaneStartError thrown before that left nothing to undo).
+bool wavefrontOnLanes(int stages, int rows, int chunks, int lookahead, int lanes,
+                      const std::function<void(int, int, int)>& work, const std::function<bool(int)>& beginStage,
+                      std::atomic<bool>& ran)
+{
     std::unique_ptr<LaneProgress[]> progress(new LaneProgress[size_t(rows)]);
     SpinBarrier barrier(lanes);
-    std::atomic<bool> stop{false};
-    std::exception_ptr error;
+    std::atomic<bool> stop{false};   // beginStage asked to stop (seen by all after the barrier)
+    std::atomic<bool> failed{false}; // a lane threw (raised by runLanes): leave every wait now
 
     auto lane = [&](int t) {
+        ran.store(true, std::memory_order_relaxed);
         for (int s = 0; s < stages; ++s) {
-            if (t == 0 && beginStage) {
-                try {
-                    if (!beginStage(s)) stop.store(true, std::memory_order_relaxed);
-                } catch (...) {
-                    error = std::current_exception();
-                    stop.store(true, std::memory_order_relaxed);
-                }
-            }
-            barrier.wait(); // the previous stage is complete everywhere; `stop` is visible
-            if (stop.load(std::memory_order_relaxed)) return;
+            if (t == 0 && beginStage && !beginStage(s)) stop.store(true, std::memory_order_relaxed);
+            // The previous stage is complete everywhere; `stop` is visible.
+            if (!barrier.wait(&failed)) return;
+            if (stop.load(std::memory_order_relaxed) || failed.load(std::memory_order_acquire)) return;
             const int64_t base = int64_t(s) * chunks;
             for (int r = t; r < rows; r += lanes) {
                 for (int c = 0; c < chunks; ++c) {
                     if (r > 0) {
                         const int64_t need = base + std::min(c + lookahead, chunks - 1) + 1;
                         for (int spin = 0; progress[r - 1].value.load(std::memory_order_acquire) < need; ++spin) {
+                            if (failed.load(std::memory_order_relaxed)) return; // row r-1's lane died
                             if (spin < 1024) cpuRelax();
                             else std::this_thread::yield();
                         }
@@ -94,9 +169,35 @@ bool runRowWavefront(int stages, int rows, int chunks, int lookahead, int lanes,
         }
     };
 
-    runLanes(lanes, lane);
-    if (error) std::rethrow_exception(error);
+    runLanes(lanes, lane, &failed); // rethrows the first exception of any lane
     return !stop.load();
+}
+
+} // namespace
+
+bool runRowWavefront(int stages, int rows, int chunks, int lookahead, int lanes,
+                     const std::function<void(int, int, int)>& work,
+                     const std::function<bool(int)>& beginStage)
+{
+    if (stages <= 0 || rows <= 0) return true;
+    chunks = std::max(1, chunks);
+    lookahead = std::max(0, lookahead);
+    lanes = std::max(1, std::min(lanes, rows));
+    while (lanes > 1) {
+        std::atomic<bool> ran{false};
+        try {
+            return wavefrontOnLanes(stages, rows, chunks, lookahead, lanes, work, beginStage, ran);
+        } catch (const LaneStartError&) {
+            if (ran.load()) throw; // thrown by the work itself, after lanes ran: not ours to retry
+            lanes /= 2;            // no lane ran: nothing to undo; fewer threads
+        }
+    }
+    for (int s = 0; s < stages; ++s) {
+        if (beginStage && !beginStage(s)) return false;
+        for (int r = 0; r < rows; ++r)
+            for (int c = 0; c < chunks; ++c) work(s, r, c);
+    }
+    return true;
 }
 
 } // namespace levelforge::detail

@@ -8,11 +8,20 @@
 /// deadlock, and a TBB task that spins may hold the only worker the task it waits for needs.
 /// Every scheduler here reproduces the serial order exactly, so results do not depend on the
 /// lane count.
+///
+/// Failures: a lane that throws never ends the process. runLanes() catches the exception,
+/// raises the caller's stop flag so that the lanes waiting for the dead lane give up (every
+/// wait here watches that flag: waitUntil(), SpinBarrier::wait(stop)), joins every thread and
+/// rethrows the first exception on the calling thread. A thread that cannot be created
+/// (std::system_error, std::bad_alloc) stops the start before any lane runs: LaneStartError.
 #pragma once
+
+#include <levelforge/core/Exceptions.h>
 
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <thread>
 
 #if defined(__x86_64__) || defined(__i386__)
@@ -31,23 +40,28 @@ inline __attribute__((always_inline)) void cpuRelax()
 }
 
 /// Sense-counting spin barrier for a fixed set of std::thread lanes (all of which exist, so
-/// spinning always ends). Yields after a short spin so that oversubscribed machines progress.
+/// spinning always ends while none fails). Yields after a short spin so that oversubscribed
+/// machines progress.
 class SpinBarrier
 {
 public:
     explicit SpinBarrier(int n) : mN(n) {}
-    void wait()
+    /// Waits until all n lanes arrived: true. False when @p stop (if set) is raised first
+    /// (a lane died and will never arrive); the barrier must not be used again after that.
+    bool wait(const std::atomic<bool>* stop = nullptr)
     {
         const int gen = mGeneration.load(std::memory_order_acquire);
         if (mCount.fetch_add(1, std::memory_order_acq_rel) == mN - 1) {
             mCount.store(0, std::memory_order_relaxed);
             mGeneration.fetch_add(1, std::memory_order_acq_rel);
-            return;
+            return true;
         }
         for (int spin = 0; mGeneration.load(std::memory_order_acquire) == gen; ++spin) {
+            if (stop && stop->load(std::memory_order_acquire)) return false;
             if (spin < 256) cpuRelax();
             else std::this_thread::yield();
         }
+        return true;
     }
 
 private:
@@ -79,9 +93,26 @@ inline bool waitUntil(const std::atomic<int64_t>& value, int64_t need, const std
     return true;
 }
 
+/// A lane thread could not be created (std::system_error: no more threads; std::bad_alloc).
+/// No lane ran: the caller may retry with fewer lanes (runRowWavefront() does, down to one)
+/// or report it. A ResourceLimitError, so a caller that does not retry reports it as such.
+class LaneStartError : public ResourceLimitError
+{
+public:
+    explicit LaneStartError(const std::string& msg) : ResourceLimitError(msg) {}
+};
+
 /// Runs lane(1..lanes-1) on std::threads and lane(0) on the calling thread, then joins them all.
 /// Real threads, not TBB tasks: lanes spin-wait for each other, which must not deadlock.
-void runLanes(int lanes, const std::function<void(int)>& lane);
+///
+/// Every thread is created before any lane starts (they wait at a start gate). When one cannot
+/// be created, the threads already created leave without running their lane, are joined, and
+/// LaneStartError is thrown: no lane has run. When a lane throws, the exception is caught on
+/// its thread, `*stop` (if given) is raised so that the other lanes stop waiting for the dead
+/// one (lanes that wait for each other must watch it), all threads are joined, and the first
+/// exception is rethrown on the calling thread. Lanes that do not wait for each other may
+/// pass no stop flag. lanes <= 1 runs lane(0) on the calling thread.
+void runLanes(int lanes, const std::function<void(int)>& lane, std::atomic<bool>* stop = nullptr);
 
 /// Number of lanes by default (vector and chamfer transforms):
 /// tbb::this_task_arena::max_concurrency(), capped by tbb::global_control's
@@ -103,10 +134,22 @@ int wavefrontChunks(int width, int lanes);
 /// r-1 has finished chunk min(c + lookahead, chunks-1). work(stage, row, chunk) must read only
 /// what that order makes final. beginStage(stage), if set, runs on lane 0 before each stage;
 /// when it returns false the wavefront stops and runRowWavefront returns false. lanes <= 1 runs
-/// serially on the calling thread. Deterministic: the serial raster order is reproduced. An
-/// exception thrown by beginStage is rethrown on the calling thread.
+/// serially on the calling thread. Deterministic: the serial raster order is reproduced, with
+/// any lane count. An exception thrown by work or beginStage stops every lane (no lane waits
+/// for a row or a barrier the failed lane will never reach) and is rethrown on the calling
+/// thread once all lanes have ended. When the lane threads cannot be created, the wavefront
+/// runs again with half the lanes, down to serially on the calling thread.
 bool runRowWavefront(int stages, int rows, int chunks, int lookahead, int lanes,
                      const std::function<void(int stage, int row, int chunk)>& work,
                      const std::function<bool(int stage)>& beginStage);
+
+namespace testing {
+
+/// For tests only: from now on, creating lane thread number @p firstLane or higher (1-based,
+/// as in runLanes()) fails with std::system_error, as it does when the system has no more
+/// threads; 0 switches it off (the default). Not for library code.
+void failLaneThreadsFrom(int firstLane);
+
+} // namespace testing
 
 } // namespace levelforge::detail

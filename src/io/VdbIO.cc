@@ -7,6 +7,8 @@
 #include <levelforge/core/Metadata.h>
 
 #include "detail/AtomicFile.h"
+#include "detail/MessageText.h"
+#include "io/VdbHeaderCheck.h"
 
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
@@ -14,6 +16,8 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <new>
+#include <stdexcept>
 #include <system_error>
 
 #include <unistd.h>
@@ -32,11 +36,19 @@ std::string quoted(const std::string& s) { return "'" + s + "'"; }
 
 std::string errnoText(int err) { return std::strerror(err); }
 
+/// The text of an exception OpenVDB (or Blosc, zlib, the standard library below it) threw,
+/// cut to a few hundred characters (a corrupt file can make it gigabytes long).
+std::string dependencyText(const std::exception& e) { return message_internal::cutDependencyMessage(e.what()); }
+
 /// Throws IoError if `path` cannot be written as a new or replaced file (see checkOutputPath).
 void checkLocation(const std::string& path)
 {
     if (path.empty()) throw IoError("cannot write a .vdb file: empty output path");
-    const fs::path dir = detail::parentDirectory(path);
+    // the output rule (detail/AtomicFile.h): devices, FIFOs and directories are refused, /dev/null
+    // is written through, links are followed to their target
+    const detail::OutputTarget target = detail::resolveOutputTarget(path, "cannot write " + quoted(path));
+    if (target.discard) return;
+    const fs::path dir = detail::parentDirectory(target.resolved);
     std::error_code ec;
     if (!fs::exists(dir, ec)) {
         throw IoError("cannot write " + quoted(path) + ": directory " + quoted(dir.string()) +
@@ -79,9 +91,13 @@ void writeGridsAtomic(const std::string& path, const openvdb::GridPtrVec& grids,
         file.write(grids, fileMeta);
         file.close();
     } catch (const std::exception& e) {
-        fail(e.what());
+        fail(dependencyText(e));
     } catch (...) {
         fail("unknown error while writing");
+    }
+    if (tmp.writesThrough()) { // /dev/null: nothing to read back
+        tmp.commit();
+        return;
     }
 
     // OpenVDB writes through an std::ofstream whose errors (disk full, quota) it does not
@@ -96,7 +112,7 @@ void writeGridsAtomic(const std::string& path, const openvdb::GridPtrVec& grids,
     } catch (const IoError&) {
         throw;
     } catch (const std::exception& e) {
-        fail(std::string("the written file does not read back (disk full?): ") + e.what());
+        fail("the written file does not read back (disk full?): " + dependencyText(e));
     }
 
     tmp.commit();
@@ -117,19 +133,37 @@ openvdb::GridPtrVecPtr readGrids(const std::string& path)
         throw IoError("cannot read " + quoted(path) + ": " + errnoText(errno));
     }
 
+    // Every length field of the header, the metadata and the grid descriptors against the
+    // bytes that remain, before OpenVDB allocates anything from them (VdbHeaderCheck.h).
+    vdbio_internal::checkVdbHeader(path);
+
+    // What the pre-scan cannot see (the trees) is left to OpenVDB; an allocation it makes from
+    // a corrupt count ends here as IoError, and its messages are cut to a few hundred bytes.
+    auto memoryError = [&](const std::exception& e) {
+        return IoError("cannot read " + quoted(path) + ": corrupt VDB file (OpenVDB asked for more memory than " +
+                       "there is: " + dependencyText(e) + ")");
+    };
     openvdb::io::File file(path);
     try {
         file.open(/*delayLoad=*/false);
+    } catch (const std::bad_alloc& e) {
+        throw memoryError(e);
+    } catch (const std::length_error& e) {
+        throw memoryError(e);
     } catch (const std::exception& e) {
-        throw IoError("cannot read " + quoted(path) + ": not a VDB file (" + e.what() + ")");
+        throw IoError("cannot read " + quoted(path) + ": not a VDB file (" + dependencyText(e) + ")");
     }
     try {
         openvdb::GridPtrVecPtr grids = file.getGrids();
         file.close();
         if (!grids) throw IoError("no grids");
         return grids;
+    } catch (const std::bad_alloc& e) {
+        throw memoryError(e);
+    } catch (const std::length_error& e) {
+        throw memoryError(e);
     } catch (const std::exception& e) {
-        throw IoError("cannot read " + quoted(path) + ": corrupt VDB file (" + e.what() + ")");
+        throw IoError("cannot read " + quoted(path) + ": corrupt VDB file (" + dependencyText(e) + ")");
     }
 }
 

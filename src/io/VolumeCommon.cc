@@ -115,7 +115,10 @@ uint64_t checkDims(const std::string& path, const int64_t dims[3], uint64_t maxV
                           n > std::numeric_limits<uint64_t>::max() / 8;
     const std::string shape = std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" +
                               std::to_string(dims[2]);
-    if (overflow) throw ResourceLimitError(path + ": volume " + shape + " has too many samples (overflow)");
+    if (overflow) {
+        throw ResourceLimitError(path + ": volume " + shape + " has too many samples (its byte count overflows "
+                                        "64 bits)");
+    }
     if (n > maxVoxels) {
         throw ResourceLimitError(path + ": volume " + shape + " has " + std::to_string(n) +
                                  " samples, more than the limit of " + std::to_string(maxVoxels));
@@ -136,6 +139,13 @@ void allocate(const std::string& path, ScalarVolume& vol, const int64_t dims[3],
 
 /// Reads vol.voxelCount() samples of @a type from @a in into vol.data (converted, optionally
 /// scaled). Processes the file in chunks so no second full-size buffer is needed.
+///
+/// When vol.data already holds vol.voxelCount() samples (allocate(): a plain file whose size
+/// was checked against the header) they are overwritten. When it is empty (a gzip stream,
+/// whose decompressed size is only bounded by the deflate ratio) it grows as the data
+/// arrives, doubling up to vol.voxelCount(), so a header that claims more data than the
+/// stream holds costs at most twice the memory of the data actually there before the
+/// "truncated" error.
 void readSamples(InputFile& in, VolumeValueType type, bool bigEndian, bool scale, double slope,
                  double inter, ScalarVolume& vol)
 {
@@ -143,6 +153,7 @@ void readSamples(InputFile& in, VolumeValueType type, bool bigEndian, bool scale
     const uint64_t count = vol.voxelCount();
     const bool swap = bytes > 1 && bigEndian != kHostBigEndian;
     const uint64_t start = in.position();
+    const bool preallocated = vol.data.size() == count;
     auto truncated = [&](uint64_t gotBytes) {
         throwInvalid(in.path(), "truncated voxel data: expected " + std::to_string(count * bytes) +
                                     " bytes (" + formatCoord(vol.dims) + " " + volumeValueTypeName(type) +
@@ -150,17 +161,31 @@ void readSamples(InputFile& in, VolumeValueType type, bool bigEndian, bool scale
                                     (in.compressed() ? "decompressed " : "") + "file has " +
                                     std::to_string(gotBytes));
     };
-    if (type == VolumeValueType::Float32 && !swap && !scale) {
+    auto growTo = [&](uint64_t need) {
+        if (vol.data.size() >= need) return;
+        try {
+            if (vol.data.capacity() < need) {
+                const uint64_t doubled = 2 * uint64_t(vol.data.capacity());
+                vol.data.reserve(size_t(std::min(count, std::max(need, doubled))));
+            }
+            vol.data.resize(size_t(need));
+        } catch (const std::bad_alloc&) {
+            throw ResourceLimitError(in.path() + ": cannot allocate " + std::to_string(need) + " float samples");
+        }
+    };
+    if (preallocated && type == VolumeValueType::Float32 && !swap && !scale) {
         const uint64_t got = in.read(vol.data.data(), count * 4);
         if (got < count * 4) truncated(got);
         return;
     }
+    if (!preallocated) vol.data.clear();
     constexpr uint64_t kChunkSamples = uint64_t(1) << 22;
     std::vector<unsigned char> buffer(size_t(std::min(count, kChunkSamples) * bytes));
     for (uint64_t first = 0; first < count; first += kChunkSamples) {
         const uint64_t n = std::min(kChunkSamples, count - first);
         const uint64_t got = in.read(buffer.data(), n * bytes);
         if (got < n * bytes) truncated(first * bytes + got);
+        if (!preallocated) growTo(first + n);
         if (scale) {
             convertAny<true>(type, buffer.data(), size_t(n), swap, slope, inter, vol.data.data() + first);
         } else {

@@ -48,8 +48,14 @@ ScalarVolume readDenStream(InputFile& in, const ReadVolumeOptions& options, Volu
                                std::to_string(dims[2]) + ")");
     }
     const uint64_t count = checkDims(path, dims, options.maxVoxels, dimNames);
+    // The header's numbers against the file's size, before anything is allocated (a gzip
+    // file: bounded by the deflate ratio, samples allocated as they arrive).
+    const io_internal::FileCapacity capacity = io_internal::fileCapacity(path);
+    const std::string problem = io_internal::declaredDataProblem(capacity, kDenHeaderBytes, "the header", dims, 1);
+    if (!problem.empty()) throwInvalid(path, "truncated voxel data: " + problem);
     ScalarVolume vol;
-    allocate(path, vol, dims, count);
+    if (capacity.gzip) vol.dims = openvdb::Coord(int(dims[0]), int(dims[1]), int(dims[2]));
+    else allocate(path, vol, dims, count);
     readSamples(in, VolumeValueType::UInt8, big, false, 1.0, 0.0, vol);
     info.compressed = in.compressed();
     if (const uint64_t extra = in.drain()) {

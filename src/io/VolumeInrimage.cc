@@ -134,8 +134,16 @@ ScalarVolume readInrStream(InputFile& in, const ReadVolumeOptions& options, Volu
 
     const char* dimNames[3] = {"XDIM", "YDIM", "ZDIM"};
     const uint64_t count = checkDims(path, dims, options.maxVoxels, dimNames);
+    // The header's numbers against the file's size, before anything is allocated: a plain file
+    // must hold every sample; a gzip file is bounded by the deflate ratio and its samples are
+    // allocated as they arrive (readSamples()).
+    const io_internal::FileCapacity capacity = io_internal::fileCapacity(path);
+    const std::string problem =
+        io_internal::declaredDataProblem(capacity, headerBytes, "the header", dims, typeBytes(info.sourceType));
+    if (!problem.empty()) throwInvalid(path, "truncated voxel data: " + problem);
     ScalarVolume vol;
-    allocate(path, vol, dims, count);
+    if (capacity.gzip) vol.dims = openvdb::Coord(int(dims[0]), int(dims[1]), int(dims[2]));
+    else allocate(path, vol, dims, count);
     vol.spacing = spacing;
     vol.origin = origin;
     if (in.skip(headerBytes - header.size()) < headerBytes - header.size()) {

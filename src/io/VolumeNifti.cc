@@ -183,11 +183,19 @@ ScalarVolume readNiftiStream(InputFile& in, const ReadVolumeOptions& options, Vo
     }
 
     const uint64_t count = checkDims(path, dims, options.maxVoxels, dimNames);
+    // The header's numbers against the file's size, before anything is allocated: a plain file
+    // must hold every sample; a gzip file is bounded by the deflate ratio and its samples are
+    // allocated as they arrive (readSamples()).
+    const uint64_t offset = uint64_t(voxOffset);
+    const io_internal::FileCapacity capacity = io_internal::fileCapacity(path);
+    const std::string problem =
+        io_internal::declaredDataProblem(capacity, offset, "the header", dims, typeBytes(info.sourceType));
+    if (!problem.empty()) throwInvalid(path, "truncated voxel data: " + problem);
     ScalarVolume vol;
-    allocate(path, vol, dims, count);
+    if (capacity.gzip) vol.dims = openvdb::Coord(int(dims[0]), int(dims[1]), int(dims[2]));
+    else allocate(path, vol, dims, count);
 
     // Skip header extensions up to vox_offset, then read.
-    const uint64_t offset = uint64_t(voxOffset);
     if (in.skip(offset - kNiftiHeaderBytes) < offset - kNiftiHeaderBytes) {
         throwInvalid(path, "truncated: the file ends before vox_offset = " + std::to_string(offset));
     }

@@ -28,8 +28,15 @@ ScalarVolume readRawStream(InputFile& in, const RawVolumeLayout& layout, uint64_
     const int64_t dims[3] = {layout.dims.x(), layout.dims.y(), layout.dims.z()};
     const char* dimNames[3] = {"x", "y", "z"};
     const uint64_t count = checkDims(path, dims, maxVoxels, dimNames);
+    // The layout against the file's size, before anything is allocated (a gzip file: bounded by
+    // the deflate ratio, samples allocated as they arrive).
+    const io_internal::FileCapacity capacity = io_internal::fileCapacity(path);
+    const std::string problem = io_internal::declaredDataProblem(capacity, layout.headerBytes, "the raw layout",
+                                                                 dims, typeBytes(layout.type));
+    if (!problem.empty()) throwInvalid(path, "truncated voxel data: " + problem);
     ScalarVolume vol;
-    allocate(path, vol, dims, count);
+    if (capacity.gzip) vol.dims = layout.dims;
+    else allocate(path, vol, dims, count);
     vol.spacing = layout.spacing;
     vol.origin = layout.origin;
     const uint64_t bytes = count * typeBytes(layout.type);

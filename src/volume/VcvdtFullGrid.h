@@ -247,7 +247,14 @@ void runFullGrid(Io& io, const MethodDef& m, const Kernel& k, openvdb::util::Nul
         io.cleanup(laneStates[size_t(t)]);
     };
 
-    detail::runLanes(lanes, lane);
+    try {
+        detail::runLanes(lanes, lane, &stop);
+    } catch (const detail::LaneStartError&) {
+        // no lane ran: release every lane's buffers, then report
+        for (auto& st : laneStates) io.cleanup(st);
+        io.done(laneStates);
+        throw;
+    }
     io.done(laneStates);
     if (error) std::rethrow_exception(error);
     if (stop.load()) {

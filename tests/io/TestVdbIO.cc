@@ -5,11 +5,16 @@
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/io/VdbIO.h>
 
+#include "detail/MessageText.h"
+#include "io/VdbHeaderCheck.h"
+
 #include <openvdb/openvdb.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -190,4 +195,160 @@ TEST(VdbIO, ExternalToolsReadTheFile)
         EXPECT_NE(readText(log).find("levelforge "), std::string::npos) << readText(log);
     }
     if (!ranOne) GTEST_SKIP() << "neither vdb_print nor pyopenvdb is installed";
+}
+
+// ===================================================== corrupt files: short, typed messages
+
+namespace {
+
+void writeText(const fs::path& path, const std::string& bytes)
+{
+    std::ofstream out(path, std::ios::binary);
+    out.write(bytes.data(), std::streamsize(bytes.size()));
+}
+
+template<typename T>
+void putField(std::string& bytes, size_t offset, T v)
+{
+    ASSERT_LE(offset + sizeof(T), bytes.size());
+    std::memcpy(&bytes[offset], &v, sizeof(T));
+}
+
+/// A written level set with file metadata and level-set metadata, as bytes.
+std::string goodVdbBytes(const fs::path& dir)
+{
+    const fs::path good = dir / "good.vdb";
+    auto grid = makeGrid();
+    levelforge::stampLevelSetMetadata(*grid, 3.0, 3.0, "unit-test", "test-method");
+    openvdb::MetaMap fileMeta;
+    fileMeta.insertMeta("creator", openvdb::StringMetadata("unit test"));
+    levelforge::writeGridsAtomic(good.string(), openvdb::GridPtrVec{grid}, fileMeta);
+    return readText(good);
+}
+
+/// readGrids() on @p bytes written to @p path: must succeed or throw IoError whose message
+/// names the file and is short. Returns the message ("" on success).
+std::string readCorrupt(const fs::path& path, const std::string& bytes, bool mustFail, const std::string& what)
+{
+    writeText(path, bytes);
+    try {
+        levelforge::readGrids(path.string());
+        if (mustFail) ADD_FAILURE() << "expected IoError for " << what;
+        return {};
+    } catch (const levelforge::IoError& e) {
+        const std::string msg = e.what();
+        EXPECT_LT(msg.size(), 1000u) << what << ": " << msg.substr(0, 2000);
+        EXPECT_NE(msg.find(path.string()), std::string::npos) << what << ": " << msg;
+        return msg;
+    } catch (const std::exception& e) {
+        ADD_FAILURE() << what << ": wrong exception type: " << std::string(e.what()).substr(0, 2000);
+        return {};
+    }
+}
+
+} // namespace
+
+TEST(VdbIO, DependencyMessagesAreCut)
+{
+    using levelforge::message_internal::cutDependencyMessage;
+    EXPECT_EQ(cutDependencyMessage("short"), "short");
+    EXPECT_EQ(cutDependencyMessage(nullptr), "unknown error");
+    EXPECT_EQ(cutDependencyMessage("a\nb\tc\x01"), "a b c?");
+    const std::string huge(3221225, 'x');
+    const std::string cut = cutDependencyMessage(huge.c_str());
+    EXPECT_LT(cut.size(), 560u);
+    EXPECT_EQ(cut.substr(0, 500), std::string(500, 'x'));
+    EXPECT_NE(cut.find("(message cut, 3.2 MB in all)"), std::string::npos) << cut;
+    // A UTF-8 sequence is not split at the cut.
+    const std::string accents = std::string(499, 'a') + "\xc3\xa9" + std::string(100, 'b');
+    EXPECT_EQ(cutDependencyMessage(accents.c_str()).substr(0, 503), std::string(499, 'a') + "... ");
+    EXPECT_EQ(levelforge::message_internal::byteSize(3221225472u), "3.2 GB");
+    EXPECT_EQ(levelforge::message_internal::groupedCount(3221225472u), "3,221,225,472");
+}
+
+TEST(VdbIO, CorruptLengthFieldsAreRefusedBeforeOpenVdbReadsThem)
+{
+    const fs::path dir = scratchDir("vdbio_corrupt_lengths");
+    const std::string good = goodVdbBytes(dir);
+    const auto summary = levelforge::vdbio_internal::checkVdbHeader((dir / "good.vdb").string());
+    EXPECT_GE(summary.fileVersion, 221u);
+    EXPECT_TRUE(summary.hasGridOffsets);
+    EXPECT_EQ(summary.gridCount, 1);
+    EXPECT_GT(summary.firstTreeOffset, 100u);
+    EXPECT_LT(summary.firstTreeOffset, good.size());
+
+    const size_t creator = good.find("creator");
+    const size_t name = good.find("surface", creator);
+    const size_t treeType = good.find("Tree_float_5_4_3", name);
+    const size_t source = good.find("levelforge:source", treeType);
+    ASSERT_NE(creator, std::string::npos);
+    ASSERT_NE(name, std::string::npos);
+    ASSERT_NE(treeType, std::string::npos);
+    ASSERT_NE(source, std::string::npos);
+    struct Case
+    {
+        const char* what;
+        size_t offset;
+        uint32_t value;
+    };
+    const Case cases[] = {
+        {"file metadata count", 57, 0x7fffffffu},
+        {"file metadata name length", creator - 4, 0xC0000000u},
+        {"file metadata type-name length", creator + 7, 0x7fffffffu},
+        {"file metadata value size", creator + 7 + 4 + 6, 0x7fffffffu},
+        {"grid count", name - 8, 0x7fffffffu},
+        {"grid name length", name - 4, 0x7fffffffu},
+        {"grid type length", name + 7, 0x7fffffffu},
+        {"grid metadata name length", source - 4, 0x7fffffffu},
+        {"grid metadata value size", source + 17 + 4 + 6, 0x7fffffffu},
+    };
+    for (const Case& c : cases) {
+        std::string bytes = good;
+        putField(bytes, c.offset, c.value);
+        const std::string msg = readCorrupt(dir / "bad.vdb", bytes, true, c.what);
+        EXPECT_NE(msg.find("corrupt VDB file"), std::string::npos) << c.what << ": " << msg;
+    }
+    {
+        std::string bytes = good;
+        putField(bytes, creator - 4, 0xC0000000u);
+        const std::string msg = readCorrupt(dir / "bad.vdb", bytes, true, "the issue's example");
+        EXPECT_NE(msg.find("claims 3,221,225,472 bytes"), std::string::npos) << msg;
+    }
+    {
+        // The grid's data position (after the type and the empty instance-parent name).
+        std::string bytes = good;
+        putField(bytes, treeType + 16 + 4, int64_t(0x7fffffffffffffff));
+        const std::string msg = readCorrupt(dir / "bad.vdb", bytes, true, "grid position");
+        EXPECT_NE(msg.find("positions of grid 0"), std::string::npos) << msg;
+    }
+}
+
+TEST(VdbIO, TruncatedCopiesGiveOneShortTypedError)
+{
+    const fs::path dir = scratchDir("vdbio_truncated");
+    const std::string good = goodVdbBytes(dir);
+    for (size_t n = 0; n < good.size(); n += (n < 160 ? 1 : 23)) {
+        readCorrupt(dir / "cut.vdb", good.substr(0, n), true, "cut at " + std::to_string(n));
+    }
+    readCorrupt(dir / "cut.vdb", good.substr(0, good.size() - 1), true, "cut by one byte");
+}
+
+TEST(VdbIO, FlippedHeaderBytesGiveATypedErrorOrAGoodRead)
+{
+    const fs::path dir = scratchDir("vdbio_flipped");
+    const std::string good = goodVdbBytes(dir);
+    const auto summary = levelforge::vdbio_internal::checkVdbHeader((dir / "good.vdb").string());
+    // The grid's compression flags steer how OpenVDB decodes the tree (not pre-scanned).
+    const size_t treeType = good.find("Tree_float_5_4_3");
+    ASSERT_NE(treeType, std::string::npos);
+    int64_t gridPos = 0;
+    std::memcpy(&gridPos, good.data() + treeType + 16 + 4, 8);
+    int refused = 0;
+    for (size_t i = 0; i < summary.firstTreeOffset; ++i) {
+        if (i >= size_t(gridPos) && i < size_t(gridPos) + 4) continue;
+        std::string bytes = good;
+        bytes[i] = char(bytes[i] ^ 0xFF);
+        if (!readCorrupt(dir / "flip.vdb", bytes, false, "byte " + std::to_string(i) + " flipped").empty()) ++refused;
+    }
+    EXPECT_GT(refused, 20);
 }

@@ -464,7 +464,8 @@ TEST(VolumeIONifti, BadHeadersGiveTypedErrorsNamingFileAndField)
     }
     {
         const std::string p = writeSpec("short.nii", s, 11);
-        expectError<InvalidVolumeError>([&] { levelforge::readVolume(p); }, {p, "truncated", "expected 12 bytes", "has 11"});
+        expectError<InvalidVolumeError>([&] { levelforge::readVolume(p); },
+                                        {p, "truncated", "claims 3x2x2 voxels of 1 byte (12 bytes)", "only 11 bytes"});
     }
     {
         NiftiSpec t = s;
@@ -580,7 +581,12 @@ TEST(VolumeIOInr, BadHeadersGiveTypedErrors)
     const std::string cpu = make("cpu.inr", "XDIM=2\nYDIM=2\nZDIM=2\nTYPE=float\nPIXSIZE=32 bits\nCPU=vax\n", 32);
     expectError<InvalidVolumeError>([&] { levelforge::readVolume(cpu); }, {cpu, "CPU 'vax'"});
     const std::string trunc = make("trunc.inr", "XDIM=2\nYDIM=2\nZDIM=2\nTYPE=float\nPIXSIZE=32 bits\nCPU=decm\n", 31);
-    expectError<InvalidVolumeError>([&] { levelforge::readVolume(trunc); }, {trunc, "truncated", "expected 32", "has 31"});
+    expectError<InvalidVolumeError>([&] { levelforge::readVolume(trunc); },
+                                    {trunc, "truncated", "claims 2x2x2 voxels of 4 bytes (32 bytes)", "only 31 bytes"});
+    // Dimensions whose product overflows 64 bits are refused before anything is allocated.
+    const std::string huge = make("huge.inr", "XDIM=2000000000\nYDIM=2000000000\nZDIM=2000000000\nTYPE=float\n"
+                                              "PIXSIZE=64 bits\nCPU=decm\n", 8);
+    expectError<levelforge::ResourceLimitError>([&] { levelforge::readVolume(huge); }, {huge, "overflows 64 bits"});
     Bytes noEnd = toBytes("#INRIMAGE-4#{\nXDIM=2\n");
     noEnd.resize(700, '\n');
     writeBytes(dir / "noend.inr", noEnd);
@@ -645,7 +651,8 @@ TEST(VolumeIODen, BadFilesGiveTypedErrors)
     shorter.pop_back();
     writeBytes(dir / "short.den", shorter);
     const std::string sh = (dir / "short.den").string();
-    expectError<InvalidVolumeError>([&] { levelforge::readVolume(sh); }, {sh, "truncated", "expected 24", "has 23"});
+    expectError<InvalidVolumeError>([&] { levelforge::readVolume(sh); },
+                                    {sh, "truncated", "claims 4x3x2 voxels of 1 byte (24 bytes)", "only 23 bytes"});
     Bytes longer = denFile(4, 3, 2, false);
     longer.push_back(0);
     writeBytes(dir / "long.den", longer);
@@ -698,7 +705,8 @@ TEST(VolumeIORaw, SizeMismatchAndMissingLayout)
     EXPECT_EQ(levelforge::readVolume(p, opt).voxelCount(), 24u);
     opt.raw->dims = openvdb::Coord(2, 3, 5); // file too short
     expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVolume(p, opt); },
-                                                {p, "truncated", "expected 60 bytes", "has 48"});
+                                                {p, "truncated", "the raw layout claims 2x3x5 voxels of 2 bytes (60 bytes)",
+                                                 "only 48 bytes"});
     opt.raw->dims = openvdb::Coord(2, 3, 3); // file too long
     expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVolume(p, opt); },
                                                 {p, "size mismatch", "expected 36 bytes", "has 48"});
@@ -741,6 +749,111 @@ TEST(VolumeIODetection, ContentDecidesForUnknownExtensionsAndErrorsNameTheFile)
     const std::string missing = (dir / "missing.nii").string();
     expectError<levelforge::IoError>([&] { levelforge::readVolume(missing); }, {missing, "no such file"});
     expectError<levelforge::IoError>([&] { levelforge::readVolume(dir.string() + "/"); }, {dir.string()});
+}
+
+// ============================================================ declared size against the file
+
+namespace {
+
+/// @a data as a gzip file made of stored (uncompressed) deflate blocks: no zlib needed here.
+Bytes gzipStored(const Bytes& data)
+{
+    static uint32_t table[256];
+    static bool init = false;
+    if (!init) {
+        for (uint32_t n = 0; n < 256; ++n) {
+            uint32_t c = n;
+            for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+            table[n] = c;
+        }
+        init = true;
+    }
+    uint32_t crc = 0xFFFFFFFFu;
+    for (unsigned char b : data) crc = table[(crc ^ b) & 0xFF] ^ (crc >> 8);
+    crc ^= 0xFFFFFFFFu;
+    Bytes out = {0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 0xff};
+    size_t pos = 0;
+    do {
+        const size_t n = std::min<size_t>(65535, data.size() - pos);
+        out.push_back(pos + n == data.size() ? 1 : 0); // BFINAL, BTYPE = stored
+        append(out, uint16_t(n), false);
+        append(out, uint16_t(~n), false);
+        out.insert(out.end(), data.begin() + long(pos), data.begin() + long(pos + n));
+        pos += n;
+    } while (pos < data.size());
+    append(out, crc, false);
+    append(out, uint32_t(data.size()), false);
+    return out;
+}
+
+/// A uint8 NIfTI-1 file (header + @a dataBytes samples n * 7 % 251) claiming @a nx x ny x nz.
+Bytes niftiClaiming(int16_t nx, int16_t ny, int16_t nz, size_t dataBytes)
+{
+    NiftiSpec s;
+    s.dim = {{3, nx, ny, nz, 1, 1, 1, 1}};
+    Bytes file = niftiHeader(s, false);
+    for (size_t n = 0; n < dataBytes; ++n) file.push_back(uint8_t(n * 7 % 251));
+    return file;
+}
+
+} // namespace
+
+TEST(VolumeIODeclaredSize, PlainFilesAreCheckedBeforeAllocating)
+{
+    const fs::path dir = scratchDir("volumeio_declared_plain");
+    using levelforge::InvalidVolumeError;
+    writeBytes(dir / "brain.nii", niftiClaiming(181, 217, 181, 2634));
+    const std::string nii = (dir / "brain.nii").string();
+    expectError<InvalidVolumeError>([&] { levelforge::readVolume(nii); },
+                                    {nii, "the header claims 181x217x181 voxels of 1 byte (7.1 MB)",
+                                     "the file holds only 2,634 bytes of data"});
+    // vox_offset beyond the end of the file: no data at all.
+    NiftiSpec far;
+    far.voxOffset = 1e8f;
+    writeBytes(dir / "far.nii", niftiHeader(far, false));
+    const std::string farPath = (dir / "far.nii").string();
+    expectError<InvalidVolumeError>([&] { levelforge::readVolume(farPath); }, {farPath, "only 0 bytes"});
+    // .den: a 62-byte header claiming 1000^3 voxels (and a matching map_length) over 24 bytes.
+    Bytes den = denFile(4, 3, 2, false);
+    for (int a = 0; a < 3; ++a) putAt(den, 50 + 2 * size_t(a), int16_t(1000), false);
+    putAt(den, 58, int32_t(1000000000), false);
+    writeBytes(dir / "big.den", den);
+    const std::string bigDen = (dir / "big.den").string();
+    expectError<InvalidVolumeError>([&] { levelforge::readVolume(bigDen); },
+                                    {bigDen, "claims 1000x1000x1000 voxels of 1 byte (1.0 GB)", "only 24 bytes"});
+}
+
+TEST(VolumeIODeclaredSize, GzipFilesAreBoundedAndGrowAsDataArrives)
+{
+    const fs::path dir = scratchDir("volumeio_declared_gzip");
+    using levelforge::InvalidVolumeError;
+    // A few hundred bytes of gzip cannot hold a gigabyte: refused from the deflate bound.
+    writeBytes(dir / "tiny.nii.gz", gzipStored(niftiClaiming(1000, 1000, 1000, 100)));
+    const std::string tiny = (dir / "tiny.nii.gz").string();
+    expectError<InvalidVolumeError>([&] { levelforge::readVolume(tiny); },
+                                    {tiny, "claims 1000x1000x1000 voxels of 1 byte (1.0 GB)", "a gzip file of",
+                                     "decompresses to at most"});
+    // Within the bound but short: read (memory grows with the data) until the data ends.
+    writeBytes(dir / "short.nii.gz", gzipStored(niftiClaiming(200, 200, 100, 100000)));
+    const std::string shortGz = (dir / "short.nii.gz").string();
+    expectError<InvalidVolumeError>([&] { levelforge::readVolume(shortGz); },
+                                    {shortGz, "truncated", "expected 4000000 bytes", "decompressed file has 100000"});
+    // A complete gzip volume larger than one read chunk (2^22 samples) reads back exactly.
+    writeBytes(dir / "full.nii.gz", gzipStored(niftiClaiming(250, 200, 100, 5000000)));
+    VolumeInfo info;
+    const ScalarVolume v = levelforge::readVolume((dir / "full.nii.gz").string(), {}, &info);
+    EXPECT_TRUE(info.compressed);
+    ASSERT_EQ(v.data.size(), 5000000u);
+    EXPECT_LE(v.data.capacity(), 5000000u);
+    for (size_t n : {size_t(0), size_t(1), size_t(4194303), size_t(4194304), size_t(4999999)})
+        EXPECT_EQ(v.data[n], float(uint8_t(n * 7 % 251))) << "sample " << n;
+    // A gzip raw file: the layout is checked the same way.
+    writeBytes(dir / "small.raw.gz", gzipStored(Bytes(10, 1)));
+    levelforge::ReadVolumeOptions opt;
+    opt.raw = levelforge::RawVolumeLayout{openvdb::Coord(1000, 1000, 1000), VolumeValueType::Float64};
+    const std::string raw = (dir / "small.raw.gz").string();
+    expectError<InvalidVolumeError>([&] { levelforge::readVolume(raw, opt); },
+                                    {raw, "the raw layout claims 1000x1000x1000 voxels of 8 bytes (8.0 GB)"});
 }
 
 TEST(VolumeIODetection, CorruptGzipIsAnIoErrorNamingTheFile)

@@ -17,7 +17,11 @@
 #include <string>
 #include <vector>
 
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
+#include <fcntl.h>
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 using levelforge_test::scratchDir;
@@ -267,7 +271,9 @@ TEST(Cli, FailuresExitNonZeroWithOneLineAndNoOutput)
         EXPECT_TRUE(r.code == 1 || r.code == 2) << c.what << ": exit " << r.code << "\n" << r.err;
         EXPECT_EQ(countLines(r.err, "levelforge: error: "), 1) << c.what << "\n" << r.err;
         EXPECT_EQ(r.err.find("terminate called"), std::string::npos) << c.what << "\n" << r.err;
-        if (!c.outputPath.empty()) EXPECT_FALSE(fs::exists(c.outputPath)) << c.what;
+        if (!c.outputPath.empty()) {
+            EXPECT_FALSE(fs::exists(c.outputPath)) << c.what;
+        }
         EXPECT_TRUE(fs::is_empty(outputs)) << c.what << ": output directory is not empty";
     }
     EXPECT_EQ(listDir(inputs), inputsBefore);
@@ -290,6 +296,125 @@ TEST(Cli, InterruptedRunWritesNothing)
     EXPECT_EQ(countLines(err, "levelforge: error: interrupted"), 1) << err;
     EXPECT_FALSE(fs::exists(out));
     EXPECT_EQ(listDir(dir), (std::vector<std::string>{"sphere.obj", "stderr.txt"}));
+}
+
+TEST(Cli, OutputThatIsAnInputIsRefused)
+{
+    const fs::path dir = scratchDir("cli_same_file");
+    const std::string mesh = (dir / "m.ply").string();
+    levelforge::writeMesh(levelforge::makeIcosphere(levelforge::Vec3d(0.0), 1.0, 2), mesh);
+    const std::string before = readText(mesh);
+    ASSERT_FALSE(before.empty());
+    fs::create_symlink("m.ply", dir / "link.vdb");
+    fs::create_hard_link(mesh, dir / "hard.vdb");
+    const std::vector<std::string> names = listDir(dir);
+
+    for (const std::string& out : {mesh, (dir / "link.vdb").string(), (dir / "hard.vdb").string(),
+                                   (dir / "." / "m.ply").string()}) {
+        const CliRun r = runLevelforge(dir, {"mesh-to-sdf", mesh, out, "--voxel-count", "16",
+                                             "--quiet"});
+        EXPECT_NE(r.code, 0) << r.command;
+        EXPECT_EQ(countLines(r.err, "levelforge: error: "), 1) << r.err;
+        EXPECT_NE(r.err.find("output '" + out + "' is the same file as the input; choose another name"),
+                  std::string::npos)
+            << r.err;
+        EXPECT_EQ(readText(mesh), before) << out << ": the input was changed";
+        EXPECT_EQ(listDir(dir), names) << out;
+    }
+    EXPECT_TRUE(fs::is_symlink(dir / "link.vdb"));
+
+    // Two inputs: the message names the one at fault.
+    const std::string a = (dir / "a.vdb").string();
+    ASSERT_EQ(runLevelforge(dir, {"mesh-to-sdf", "builtin:sphere", a, "--voxel-count", "16",
+                                  "--quiet"}).code, 0);
+    const std::string aBefore = readText(a);
+    const CliRun csg = runLevelforge(dir, {"csg", a, a, a});
+    EXPECT_NE(csg.code, 0);
+    EXPECT_EQ(countLines(csg.err, "levelforge: error: "), 1) << csg.err;
+    EXPECT_NE(csg.err.find("is the same file as the input <a>"), std::string::npos) << csg.err;
+    EXPECT_EQ(readText(a), aBefore);
+}
+
+TEST(Cli, OutputToDevNullDiscardsIt)
+{
+    struct stat before {};
+    ASSERT_EQ(::stat("/dev/null", &before), 0);
+    const fs::path dir = scratchDir("cli_dev_null");
+    const CliRun r = runLevelforge(dir, {"mesh-to-sdf", "builtin:sphere", "/dev/null",
+                                         "--voxel-count", "16", "--quiet"});
+    EXPECT_EQ(r.code, 0) << r.command << "\n" << r.err;
+    EXPECT_EQ(countLines(r.err, "levelforge: error: "), 0) << r.err;
+    struct stat after {};
+    ASSERT_EQ(::lstat("/dev/null", &after), 0);
+    EXPECT_TRUE(S_ISCHR(after.st_mode)) << "/dev/null was replaced";
+    EXPECT_EQ(after.st_rdev, before.st_rdev);
+    EXPECT_EQ(after.st_ino, before.st_ino);
+}
+
+TEST(Cli, OutputThatIsNotARegularFileIsRefused)
+{
+    const fs::path dir = scratchDir("cli_not_regular");
+    const fs::path outputs = dir / "outputs";
+    fs::create_directories(outputs / "sub.vdb");
+    const fs::path fifo = outputs / "pipe.vdb";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+
+    struct Case
+    {
+        std::string path, what;
+    };
+    std::vector<Case> cases = {{(outputs / "sub.vdb").string(), "is a directory"},
+                               {outputs.string(), "is a directory"},
+                               {fifo.string(), "is a FIFO"}};
+    // A character device node of our own (root only): /dev/full's numbers, in the scratch dir.
+    const fs::path device = outputs / "full.vdb";
+    if (::mknod(device.c_str(), S_IFCHR | 0666, makedev(1, 7)) == 0) {
+        cases.push_back({device.string(), "is a character device"});
+    }
+    const std::vector<std::string> names = listDir(outputs);
+    for (const Case& c : cases) {
+        // `timeout` only keeps a broken build from hanging the suite on the FIFO; no timing is
+        // asserted.
+        const fs::path errFile = dir / "stderr.txt";
+        const std::string command = "timeout 300 " + quote(LEVELFORGE_CLI_PATH) +
+                                    " mesh-to-sdf builtin:sphere " + quote(c.path) +
+                                    " --voxel-count 16 --quiet </dev/null >/dev/null 2>" +
+                                    quote(errFile.string());
+        const int status = std::system(command.c_str());
+        ASSERT_TRUE(WIFEXITED(status)) << command;
+        const int code = WEXITSTATUS(status);
+        const std::string err = readText(errFile);
+        EXPECT_NE(code, 0) << c.path;
+        EXPECT_NE(code, 124) << c.path << ": the command hung";
+        EXPECT_EQ(countLines(err, "levelforge: error: "), 1) << err;
+        EXPECT_NE(err.find("'" + c.path + "' " + c.what), std::string::npos) << err;
+        EXPECT_NE(err.find("not a regular file"), std::string::npos) << err;
+        EXPECT_EQ(listDir(outputs), names) << c.path;
+    }
+    struct stat st {};
+    ASSERT_EQ(::lstat(fifo.c_str(), &st), 0);
+    EXPECT_TRUE(S_ISFIFO(st.st_mode));
+    if (::lstat(device.c_str(), &st) == 0) {
+        EXPECT_TRUE(S_ISCHR(st.st_mode));
+    }
+    EXPECT_TRUE(fs::is_directory(outputs / "sub.vdb"));
+}
+
+TEST(Cli, StaleTemporaryFilesOfTheOutputAreRemoved)
+{
+    const fs::path dir = scratchDir("cli_stale_tmp");
+    const pid_t child = ::fork(); // a PID that no longer exists
+    if (child == 0) ::_exit(0);
+    ASSERT_GT(child, 0);
+    ::waitpid(child, nullptr, 0);
+    const std::string stale = ".out.vdb." + std::to_string(child) + "-0123abcd.tmp";
+    const std::string other = ".other.vdb." + std::to_string(child) + "-0123abcd.tmp";
+    std::ofstream(dir / stale) << "";
+    std::ofstream(dir / other) << "";
+    const CliRun r = runLevelforge(dir, {"mesh-to-sdf", "builtin:sphere", (dir / "out.vdb").string(),
+                                         "--voxel-count", "16", "--quiet"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(listDir(dir), (std::vector<std::string>{other, "out.vdb"}));
 }
 
 TEST(Cli, HelpAndUsage)
