@@ -40,19 +40,17 @@ void printStats(std::ostream& os, const MeshToLevelSetStats& s)
     os << "statistics:\n"
        << "  triangles used:          " << withThousands(s.triangles) << " ("
        << withThousands(s.skippedDegenerate) << " degenerate skipped)\n"
-       << "  microtriangles:          " << withThousands(s.microtriangles) << " (cases 1-4: "
-       << s.caseCounts[0] << ", " << s.caseCounts[1] << ", " << s.caseCounts[2] << ", "
-       << s.caseCounts[3] << ")\n"
-       << "  boundary cells:          " << withThousands(s.boundaryCells) << "\n"
-       << "  triangle list entries:   " << withThousands(s.triangleListEntries) << "\n"
-       << "  local cells:             " << withThousands(s.localCells) << "\n"
+       << "  hierarchy:               " << withThousands(s.hierarchyNodes) << " nodes, "
+       << withThousands(s.clusters) << " clusters of <= 8 triangles\n"
+       << "  candidate leaves:        " << withThousands(s.candidateLeaves) << "\n"
        << "  candidate voxels:        " << withThousands(s.candidateVoxels) << "\n"
        << "  active voxels:           " << withThousands(s.activeVoxels) << "\n"
        << "  distance evaluations:    " << withThousands(s.distanceEvaluations) << " ("
        << fmt("%.2f", s.evaluationsPerActiveVoxel()) << " per active voxel)\n"
-       << "  bound tests:             " << withThousands(s.boundTests) << "\n"
-       << "  seconds: voxelize " << fmt("%.3f", s.secondsVoxelize) << ", lists "
-       << fmt("%.3f", s.secondsLists) << ", distance " << fmt("%.3f", s.secondsDistance)
+       << "  bound tests:             " << withThousands(s.boundTests) << " triangles, "
+       << withThousands(s.nodeTests) << " boxes\n"
+       << "  seconds: hierarchy " << fmt("%.3f", s.secondsHierarchy) << ", candidates "
+       << fmt("%.3f", s.secondsCandidates) << ", distance " << fmt("%.3f", s.secondsDistance)
        << ", finish " << fmt("%.3f", s.secondsFinish) << "\n";
 }
 

@@ -120,13 +120,16 @@ void assemble(const std::string& path, Importer& imp, Prescan& pre, TriangleMesh
               MeshReadInfo& info)
 {
     // Positions: exact doubles from the pre-scan when they agree with what OpenMesh read.
-    bool exact = pre.havePoints && pre.points.size() == imp.mPoints.size();
+    bool exact = !pre.importerPointsExact && pre.havePoints && pre.points.size() == imp.mPoints.size();
     for (size_t i = 0; exact && i < pre.points.size(); ++i) {
         for (int k = 0; k < 3; ++k) {
             if (!sameAsFloat(pre.points[i][k], imp.mPoints[i][k])) { exact = false; break; }
         }
     }
-    if (exact) {
+    if (pre.importerPointsExact) {
+        mesh.points = std::move(imp.mPoints);
+        exact = true;
+    } else if (exact) {
         mesh.points = std::move(pre.points);
     } else {
         mesh.points = std::move(imp.mPoints);

@@ -1,10 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file
-/// @brief readMesh() and the list of readable formats: pre-scan, OpenMesh's readers, assembly
-///        (see MeshIO.h).
+/// @brief readMesh() and the list of readable formats: the parallel fast path for plain files
+///        (MeshParseFast.h), otherwise pre-scan, OpenMesh's readers; then assembly (see MeshIO.h).
 #include <levelforge/io/MeshIO.h>
 
 #include "io/MeshImporter.h"
+#include "io/MeshParseFast.h"
 
 #include <OpenMesh/Core/IO/IOManager.hh>
 #include <OpenMesh/Core/IO/reader/OBJReader.hh>
@@ -97,6 +98,25 @@ TriangleMesh readMesh(const std::string& path, MeshReadInfo& info)
     info.format = ext == ".stla" || ext == ".stlb" ? "stl" : ext.substr(1);
 
     Prescan pre;
+    if (info.format != "off") {
+        // Plain OBJ / PLY / STL files: the parallel fast path, the same result as below.
+        FastMesh fast;
+        if (fastReadMesh(path, ext, info.format, fast)) {
+            info.binary = fast.binary;
+            pre.binary = fast.binary;
+            pre.faces = fast.fileFaces;
+            pre.haveFaces = true;
+            pre.importerPointsExact = fast.exactPoints;
+            Importer importer;
+            importer.mPoints = std::move(fast.points);
+            importer.mFaceStream = std::move(fast.faceStream);
+            importer.mFaceCount = fast.faceCount;
+            TriangleMesh mesh;
+            mesh.source = path;
+            assemble(path, importer, pre, mesh, info);
+            return mesh;
+        }
+    }
     if (info.format == "obj") prescanObj(path, pre);
     else if (info.format == "off") prescanOff(path, pre);
     else if (info.format == "ply") prescanPly(path, pre);

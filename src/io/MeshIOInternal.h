@@ -169,6 +169,9 @@ public:
 
     uint64_t lineNumber() const { return mLine; }
 
+    /// Bytes of the file consumed so far (lines returned, bytes copied).
+    uint64_t offset() const { return mFileOffset + mBegin; }
+
 private:
     /// Moves the unread bytes to the front and reads more (grows the buffer for a long line).
     void refill();
@@ -177,6 +180,7 @@ private:
     std::FILE* mFile = nullptr;
     std::vector<char> mBuf;
     size_t mBegin = 0, mEnd = 0;
+    uint64_t mFileOffset = 0; ///< file offset of mBuf[0]
     bool mEof = false;
     uint64_t mLine = 0;
 };
@@ -205,6 +209,17 @@ private:
 
 // --------------------------------------------------------------------------------- pre-scan
 
+/// Bytes of @a path after @a offset (0 when the size cannot be read).
+uint64_t bytesAfter(const std::string& path, uint64_t offset);
+
+/// "the header claims <count> <what> but the file holds only <bytes> bytes after the header":
+/// the note of a header whose counts cannot fit in the rest of the file. The pre-scans check a
+/// header's counts against the bytes that remain before they allocate anything sized from them
+/// (binary: the exact bytes needed; text: at least two bytes per number, a digit and a
+/// separator, one less at the very end), allocate only what the file can hold, and add the
+/// note to the error they report when the data runs out.
+std::string headerClaimNote(uint64_t count, const std::string& what, uint64_t bytes);
+
 /// What the pre-scan learnt about a file.
 struct Prescan
 {
@@ -213,6 +228,10 @@ struct Prescan
     uint64_t faces = 0;              ///< faces (polygons / facets) in the file
     bool havePoints = false;
     std::vector<Vec3d> points;       ///< exact positions, file order (OBJ, OFF, PLY)
+    /// The importer's points are already the exact positions of the file (the parallel fast path
+    /// of MeshParseFast.h read them with the pre-scan's own parser): assemble() takes them as
+    /// they are and reports double precision.
+    bool importerPointsExact = false;
 };
 
 /// Pre-scans an OBJ file: coordinates, face indices, exact positions (MeshScanObj.cc).

@@ -32,6 +32,19 @@ std::string describeCoordinateProblem(NumberStatus st, std::string_view tok)
     return "bad coordinate " + message_internal::quotedExcerpt(tok);
 }
 
+uint64_t bytesAfter(const std::string& path, uint64_t offset)
+{
+    std::error_code ec;
+    const uint64_t size = fs::file_size(path, ec);
+    return ec || size < offset ? 0 : size - offset;
+}
+
+std::string headerClaimNote(uint64_t count, const std::string& what, uint64_t bytes)
+{
+    return "the header claims " + std::to_string(count) + " " + what + " but the file holds only " +
+           std::to_string(bytes) + " bytes after the header";
+}
+
 FileReader::FileReader(const std::string& path) : mPath(path)
 {
     mFile = std::fopen(path.c_str(), "rb");
@@ -51,6 +64,7 @@ void FileReader::refill()
     const size_t avail = mEnd - mBegin;
     if (mBegin > 0) {
         std::memmove(mBuf.data(), mBuf.data() + mBegin, avail);
+        mFileOffset += mBegin;
         mBegin = 0;
         mEnd = avail;
     }

@@ -26,13 +26,18 @@ void prescanBinaryOff(const std::string& path, FileReader& reader, bool extras, 
     if (nV > uint32_t(std::numeric_limits<int>::max()) || nF > uint32_t(std::numeric_limits<int>::max())) {
         throwInvalid(path, 0, "binary OFF vertex or face count too large");
     }
+    // Exact bytes: 12 per vertex, at least 4 (the corner count) per face.
+    const uint64_t remaining = bytesAfter(path, reader.offset());
+    std::string note;
+    if (12 * uint64_t(nV) > remaining) note = " (" + headerClaimNote(nV, "vertices", remaining) + ")";
+    else if (12 * uint64_t(nV) + 4 * uint64_t(nF) > remaining) note = " (" + headerClaimNote(nF, "faces", remaining) + ")";
     if (extras) {
         // Colours / normals / texture coordinates: only make sure the counts are plausible.
         std::error_code ec;
         const uint64_t size = fs::file_size(path, ec);
         if (!ec && size < 12 * uint64_t(nV) + 4 * uint64_t(nF)) {
             throwInvalid(path, 0, "binary OFF is shorter than its " + std::to_string(nV) +
-                " vertices and " + std::to_string(nF) + " faces");
+                " vertices and " + std::to_string(nF) + " faces" + note);
         }
         return;
     }
@@ -41,7 +46,7 @@ void prescanBinaryOff(const std::string& path, FileReader& reader, bool extras, 
             uint32_t bits = 0;
             if (!readU32(bits)) {
                 throwInvalid(path, 0, "the file ends inside vertex " + std::to_string(v) + " of " +
-                    std::to_string(nV));
+                    std::to_string(nV) + note);
             }
             float x;
             std::memcpy(&x, &bits, 4);
@@ -55,11 +60,11 @@ void prescanBinaryOff(const std::string& path, FileReader& reader, bool extras, 
         uint32_t corners = 0;
         if (!readU32(corners)) {
             throwInvalid(path, 0, "the file ends before face " + std::to_string(f) + " of " +
-                std::to_string(nF));
+                std::to_string(nF) + note);
         }
         for (uint32_t c = 0; c < corners; ++c) {
             uint32_t idx = 0;
-            if (!readU32(idx)) throwInvalid(path, 0, "the file ends inside face " + std::to_string(f));
+            if (!readU32(idx)) throwInvalid(path, 0, "the file ends inside face " + std::to_string(f) + note);
             if (idx >= nV) {
                 throwInvalid(path, 0, "face " + std::to_string(f) + ": vertex index " +
                     std::to_string(idx) + " is out of range (the file has " + std::to_string(nV) +
@@ -124,13 +129,25 @@ void prescanOff(const std::string& path, Prescan& out)
     }
     tokens.skipRestOfLine();
 
-    out.points.resize(nV);
+    // At least two bytes per number (a digit and a separator; one less at the very end): a
+    // header that claims more than the file can hold allocates only what the file can hold and
+    // its count is named when the data runs out.
+    const uint64_t perVertex = hasNormal ? 6 : 3;
+    const uint64_t remaining = bytesAfter(path, reader.offset());
+    std::string note;
+    if (2 * perVertex * nV > remaining + 1) {
+        note = " (" + headerClaimNote(nV, "vertices", remaining) + ")";
+    } else if (2 * (perVertex * nV + nF) > remaining + 1) {
+        note = " (" + headerClaimNote(nF, "faces", remaining) + ")";
+    }
+    out.points.clear();
+    out.points.reserve(size_t(std::min<uint64_t>(nV, remaining / (2 * perVertex) + 1)));
     for (uint64_t v = 0; v < nV; ++v) {
-        Vec3d& q = out.points[v];
+        Vec3d q(0.0);
         for (int k = 0; k < (hasNormal ? 6 : 3); ++k) {
             if (!tokens.next(tok)) {
                 throwInvalid(path, tokens.line(), "the file ends inside vertex " + std::to_string(v) +
-                    " of " + std::to_string(nV));
+                    " of " + std::to_string(nV) + note);
             }
             double value = 0;
             const NumberStatus st = parseCoordinate(tok, value);
@@ -140,12 +157,13 @@ void prescanOff(const std::string& path, Prescan& out)
             }
             if (k < 3) q[k] = value;
         }
+        out.points.push_back(q);
         tokens.skipRestOfLine(); // colours / texture coordinates
     }
     for (uint64_t f = 0; f < nF; ++f) {
         if (!tokens.next(tok)) {
             throwInvalid(path, tokens.line(), "the file ends before face " + std::to_string(f) +
-                " of " + std::to_string(nF));
+                " of " + std::to_string(nF) + note);
         }
         uint32_t corners = 0;
         if (!parseInteger(tok, corners)) {
@@ -154,7 +172,7 @@ void prescanOff(const std::string& path, Prescan& out)
         }
         for (uint32_t c = 0; c < corners; ++c) {
             if (!tokens.next(tok)) {
-                throwInvalid(path, tokens.line(), "the file ends inside face " + std::to_string(f));
+                throwInvalid(path, tokens.line(), "the file ends inside face " + std::to_string(f) + note);
             }
             long long idx = 0;
             if (!parseInteger(tok, idx)) {

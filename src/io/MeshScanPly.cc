@@ -167,6 +167,27 @@ void prescanPly(const std::string& path, Prescan& out)
     for (const PlyElement& e : elements) {
         if (e.name == "vertex") nV = e.count;
     }
+    // The counts against the bytes after the header, before anything is sized from them: binary,
+    // the exact bytes of fixed-size properties and at least the count of each list; text, at
+    // least two bytes per number (one less at the very end).
+    const bool binaryBody = format != PlyFormat::Ascii;
+    const uint64_t fileSize = bytesAfter(path, 0);
+    const uint64_t remaining = fileSize > reader.offset() ? fileSize - reader.offset() : 0;
+    std::string note;
+    {
+        uint64_t needed = 0;
+        for (const PlyElement& e : elements) {
+            uint64_t per = 0;
+            for (const PlyProperty& p : e.props) per += binaryBody ? plySize(p.isList ? p.countType : p.type) : 2;
+            needed += per * e.count;
+            if (needed > remaining + (binaryBody ? 0 : 1)) {
+                const std::string what = e.name == "vertex" ? "vertices" : e.name == "face" ? "faces" :
+                    "'" + e.name + "' elements";
+                note = " (" + headerClaimNote(e.count, what, remaining) + ")";
+                break;
+            }
+        }
+    }
     TokenReader tokens(reader);
     bool sawVertices = false;
     for (const PlyElement& e : elements) {
@@ -186,7 +207,12 @@ void prescanPly(const std::string& path, Prescan& out)
             }
         }
         const bool keepPoints = isVertex && xyz[0] >= 0 && xyz[1] >= 0 && xyz[2] >= 0;
-        if (keepPoints) out.points.resize(e.count);
+        if (keepPoints) {
+            // Only as many vertices as the file can hold (the loop below ends there).
+            uint64_t per = 0;
+            for (const PlyProperty& p : e.props) per += binaryBody ? plySize(p.isList ? p.countType : p.type) : 2;
+            out.points.resize(size_t(std::min<uint64_t>(e.count, remaining / std::max<uint64_t>(per, 1) + 2)));
+        }
         if (isVertex) sawVertices = true;
         const std::string what = isVertex ? "vertex" : (isFace ? "face" : e.name);
         for (uint64_t n = 0; n < e.count; ++n) {
@@ -198,13 +224,20 @@ void prescanPly(const std::string& path, Prescan& out)
                     if (format == PlyFormat::Ascii) {
                         if (!tokens.next(tok) || !parseInteger(tok, items)) {
                             throwInvalid(path, tokens.line(), what + " " + std::to_string(n) +
-                                ": cannot read the list length of '" + p.name + "'");
+                                ": cannot read the list length of '" + p.name + "'" + note);
                         }
                     } else {
                         if (!readPlyBinary(reader, p.countType, swap, value)) {
-                            throwInvalid(path, 0, "the file ends inside " + what + " " + std::to_string(n));
+                            throwInvalid(path, 0, "the file ends inside " + what + " " + std::to_string(n) + note);
                         }
                         items = uint64_t(value);
+                    }
+                    // A list length the rest of the file cannot hold.
+                    const uint64_t left = fileSize > reader.offset() ? fileSize - reader.offset() : 0;
+                    const uint64_t need = binaryBody ? items * plySize(p.type) : 2 * items;
+                    if (note.empty() && need > left + (binaryBody ? 0 : 1)) {
+                        note = " (its list '" + p.name + "' claims " + std::to_string(items) +
+                               " items but the file holds only " + std::to_string(left) + " more bytes)";
                     }
                 }
                 for (uint64_t k = 0; k < items; ++k) {
@@ -212,7 +245,7 @@ void prescanPly(const std::string& path, Prescan& out)
                     if (format == PlyFormat::Ascii) {
                         if (!tokens.next(tok)) {
                             throwInvalid(path, tokens.line(), "the file ends inside " + what + " " +
-                                std::to_string(n) + " of " + std::to_string(e.count));
+                                std::to_string(n) + " of " + std::to_string(e.count) + note);
                         }
                         st = parseCoordinate(tok, value);
                         if (st == NumberStatus::NotANumber) {
@@ -222,7 +255,7 @@ void prescanPly(const std::string& path, Prescan& out)
                     } else {
                         if (!readPlyBinary(reader, p.type, swap, value)) {
                             throwInvalid(path, 0, "the file ends inside " + what + " " +
-                                std::to_string(n) + " of " + std::to_string(e.count));
+                                std::to_string(n) + " of " + std::to_string(e.count) + note);
                         }
                         if (!std::isfinite(value)) st = NumberStatus::NonFinite;
                         else if (std::abs(value) > double(FLT_MAX)) st = NumberStatus::OutOfFloatRange;
@@ -233,6 +266,9 @@ void prescanPly(const std::string& path, Prescan& out)
                             throwInvalid(path, lineNo, "vertex " + std::to_string(n) + ": " +
                                 describeCoordinateProblem(st, format == PlyFormat::Ascii ? tok
                                     : std::string_view(formatDouble(value))));
+                        }
+                        if (n >= out.points.size()) { // cannot happen: the data ends first
+                            throwInvalid(path, lineNo, "vertex " + std::to_string(n) + ": beyond the data" + note);
                         }
                         out.points[n][int(i) == xyz[0] ? 0 : (int(i) == xyz[1] ? 1 : 2)] = value;
                     }

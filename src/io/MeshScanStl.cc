@@ -38,11 +38,17 @@ void prescanStl(const std::string& path, const std::string& ext, Prescan& out)
             throwInvalid(path, 0, "truncated binary STL header");
         }
         if (kHostBigEndian) n = __builtin_bswap32(n);
+        // Exactly 50 bytes per facet after the 84-byte header.
+        const uint64_t remaining = bytesAfter(path, 84);
+        const std::string note = 50 * uint64_t(n) > remaining
+            ? " (" + headerClaimNote(n, "triangles", remaining) + ", " + std::to_string(50 * uint64_t(n)) +
+                  " needed)"
+            : std::string();
         unsigned char rec[50];
         for (uint32_t f = 0; f < n; ++f) {
             if (!reader.readBytes(rec, 50)) {
                 throwInvalid(path, 0, "the file ends inside facet " + std::to_string(f) + " of " +
-                    std::to_string(n));
+                    std::to_string(n) + note);
             }
             for (int c = 0; c < 3; ++c) {
                 for (int k = 0; k < 3; ++k) {
@@ -90,6 +96,27 @@ void prescanStl(const std::string& path, const std::string& ext, Prescan& out)
             }
         }
         ++facets;
+    }
+    if (facets == 0) {
+        // Not ASCII STL. A binary STL whose size disagrees with its triangle count is read as
+        // ASCII (OpenMesh's rule) and yields nothing: say what its header claims.
+        std::error_code ec;
+        const uint64_t size = fs::file_size(path, ec);
+        FileReader head(path);
+        char header[84];
+        if (!ec && size >= 84 && head.readBytes(header, 84)) {
+            std::string_view start(header, 80);
+            while (!start.empty() && isSpace(start.front())) start.remove_prefix(1);
+            const bool solid = start.size() >= 5 && io_internal::asciiLower(std::string(start.substr(0, 5))) == "solid";
+            uint32_t n = 0;
+            std::memcpy(&n, header + 80, 4);
+            if (kHostBigEndian) n = __builtin_bswap32(n);
+            if (!solid && std::memchr(header, '\0', 84) != nullptr) {
+                throwInvalid(path, 0, "not a valid binary STL: " + headerClaimNote(n, "triangles", size - 84) +
+                    " (a binary STL holds exactly 50 bytes per triangle after its 84-byte header: " +
+                    std::to_string(84 + 50 * uint64_t(n)) + " bytes)");
+            }
+        }
     }
     out.faces = facets;
     out.haveFaces = true;

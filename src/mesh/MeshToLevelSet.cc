@@ -2,33 +2,31 @@
 // Mesh → exact narrow-band level set (Chang, Cha, Ihm 2008): the exact band. See MeshToLevelSet.h.
 // This translation unit holds the heavy OpenVDB template work of the main road.
 #include "detail/ProgressCheck.h"
-#include "detail/PreparedTriangle.h"
 #include "detail/Timer.h"
+#include "mesh/LazyPseudoNormals.h"
+#include "mesh/TriangleHierarchy.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/mesh/MeshToLevelSet.h>
 #include <levelforge/core/MeshValidation.h>
 #include <levelforge/mesh/MicrotriangleVoxelizer.h>
 #include <levelforge/core/Progress.h>
-#include <levelforge/core/PseudoNormals.h>
 #include <levelforge/core/TriangleDistance.h>
-#include <levelforge/mesh/TriangleListTree.h>
 
 #include <openvdb/tools/SignedFloodFill.h>
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
-#include <cstring>
+#include <atomic>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <sstream>
 
 namespace levelforge {
@@ -41,322 +39,446 @@ using Vec3fLeaf = openvdb::Vec3fTree::LeafNodeType;
 using Int32Leaf = openvdb::Int32Tree::LeafNodeType;
 using detail::Clock;
 using detail::secondsSince;
-using detail::PreparedTri;
+using namespace mesh_internal;
 
-constexpr uint32_t kNone = 0xffffffffu;
-
-
-/// A row of cells (along z) at offsets (dx, dy) from the voxel's cell, with its minimum squared
-/// distance from the voxel centre (the paper's layer groups 0, 1/4, 1/2, ... generalised), and
-/// how far along z the row can hold a cell closer than the band limit.
-struct RowOffset
-{
-    int dx, dy;
-    double m2;
-    int reachZ;
-};
-
-inline double minAxisDist(int o) { const double d = std::abs(o) - 0.5; return d > 0.0 ? d : 0.0; }
-
+constexpr uint32_t kNone = kNoTriangle;
+constexpr size_t kMaxFlat = 4096;   // clusters a leaf lists flat, at most
+constexpr size_t kMaxFrontier = 32; // subtrees a leaf's voxels start their search from, when more
 
 /// Per-thread scratch reused for every leaf: no per-voxel allocation.
 struct Scratch
 {
-    std::vector<uint64_t> bits;       // boundary-cell bit rows (along z) of the gathered region
-    std::vector<uint32_t> cellOrd;    // per gathered cell (temporary): global ordinal
-    std::vector<uint8_t> zwin;        // z-windows of the dilated rows, per dilation k
-    std::vector<PreparedTri> tris;
-    std::vector<float> soa, lb2;  // lower-bound planes (16 SoA arrays) and per-voxel bounds
-    std::vector<uint32_t> surv;
-    std::vector<uint32_t> hashKey;    // leaf-local set of triangle ids (open addressing)
-    uint64_t evaluations = 0, boundTests = 0, candidateVoxels = 0, activeVoxels = 0, localCells = 0;
+    std::vector<uint32_t> front, next;             // the leaf's frontier of hierarchy nodes
+    std::vector<std::pair<double, uint32_t>> order; // frontier sorted by distance to the leaf centre
+    std::vector<uint32_t> near;                     // per voxel: the frontier entries within reach
+    std::vector<float> fd2;                         // per voxel: their squared distances
+    // The frontier's boxes and an 8-ary tree over them: level 0 holds the entries' boxes, level
+    // k + 1 the union of 8 consecutive boxes of level k, up to a level of at most 8 boxes. Each
+    // level is 6 SoA arrays of `stride` floats (a multiple of 8, padded with far boxes),
+    // relative to the leaf centre.
+    struct Level
+    {
+        std::vector<float> box;
+        size_t count = 0, stride = 0;
+    };
+    std::vector<Level> levels;
+    size_t nLevels = 0;
+    std::vector<std::pair<uint32_t, double>> stack; // traversal stack: node, its box distance²
+    uint64_t evaluations = 0, boundTests = 0, nodeTests = 0, candidateVoxels = 0, activeVoxels = 0;
 };
 
 struct Context
 {
     const TriangleMesh& mesh;
     const std::vector<Vec3d>& cellPts; // mesh points in cell space
-    const TriangleListTree& lists;
-    const PseudoNormals& normals;
+    const TriangleHierarchy& hierarchy;
+    const LazyPseudoNormals& normals;
     double voxelSize;
     double extW, intW, limit, limit2;
-    int R, D, words;
-    std::vector<RowOffset> rows;
+    double margin; // cells: covers the single-precision rounding of the cluster bounds
     float background;
 };
 
-/// The 8 bits of a multi-word bit row starting at bit `pos` (bits past the end read as 0).
-inline uint32_t bits8Helper(const uint64_t* row, int pos, int words)
+/// The search state of one voxel: the best triangle so far and the pruning radius.
+struct VoxelSearch
 {
-    const int w = pos >> 6, sh = pos & 63;
-    if (w >= words) return 0u;
-    uint64_t v = row[w] >> sh;
-    if (sh > 56 && w + 1 < words) v |= row[w + 1] << (64 - sh);
-    return uint32_t(v & 0xffu);
+    Vec3d p;
+    double best2;
+    uint32_t bestT = kNone;
+    TriangleClosestPoint bestCp{Vec3d(0.0), 0.0, TriangleFeature::Face};
+    double bm2;   // (sqrt(best2) + margin)²: boxes and bounds at or beyond it are pruned
+    float bm2f;
+    uint32_t seed = kNone;
+
+    void tighten(double margin)
+    {
+        const double bm = std::sqrt(best2) + margin;
+        bm2 = bm * bm;
+        bm2f = float(bm2);
+    }
+};
+
+inline void evaluate(const Context& ctx, VoxelSearch& v, uint32_t t, Scratch& s)
+{
+    const Vec3I& tri = ctx.mesh.triangles[t];
+    ++s.evaluations;
+    const TriangleClosestPoint cp = closestPointOnTriangle(v.p, ctx.cellPts[tri[0]], ctx.cellPts[tri[1]], ctx.cellPts[tri[2]]);
+    if (cp.distanceSqr < v.best2) {
+        v.best2 = cp.distanceSqr;
+        v.bestT = t;
+        v.bestCp = cp;
+        v.tighten(ctx.margin);
+    }
 }
 
-/// lb2[i] = plane_i(p)² + max(0, edge lines_i(p))² for the SoA bound planes F[0..15];
-/// n is a multiple of 8. Appends to surv the indices with lb2 < bm2 and returns their count. SSE2 on x86-64 (4 triangles per instruction), scalar elsewhere.
-uint32_t computeBounds(float* const* F, size_t n, float px, float py, float pz, float bm2, float* __restrict lb2,
-                       uint32_t* __restrict surv)
+/// Bounds of a cluster's triangles, then exact evaluation of the survivors in increasing bound
+/// order while the bound is below the best distance.
+inline void visitCluster(const Context& ctx, const TriangleCluster& c, VoxelSearch& v, Scratch& s)
 {
-    uint32_t ns = 0;
-#if defined(__SSE2__)
-    const __m128 X = _mm_set1_ps(px), Y = _mm_set1_ps(py), Z = _mm_set1_ps(pz), zero = _mm_setzero_ps();
-    auto plane = [&](int f, size_t i) {
-        const __m128 v = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_loadu_ps(F[f] + i), X), _mm_mul_ps(_mm_loadu_ps(F[f + 1] + i), Y)),
-                                    _mm_mul_ps(_mm_loadu_ps(F[f + 2] + i), Z));
-        return _mm_sub_ps(v, _mm_loadu_ps(F[f + 3] + i));
-    };
-    for (size_t i = 0; i < n; i += 4) {
-        const __m128 pd = plane(0, i);
-        const __m128 e = _mm_max_ps(_mm_max_ps(plane(4, i), plane(8, i)), _mm_max_ps(plane(12, i), zero));
-        const __m128 l = _mm_add_ps(_mm_mul_ps(pd, pd), _mm_mul_ps(e, e));
-        _mm_storeu_ps(lb2 + i, l);
-        int m = _mm_movemask_ps(_mm_cmplt_ps(l, _mm_set1_ps(bm2)));
-        while (m) {
-            surv[ns++] = uint32_t(i) + uint32_t(__builtin_ctz(unsigned(m)));
-            m &= m - 1;
+    const Vec3d q = v.p - c.origin;
+    alignas(16) float lb2[kClusterSize];
+    uint32_t mask = clusterBounds(c, float(q[0]), float(q[1]), float(q[2]), v.bm2f, lb2);
+    s.boundTests += c.count;
+    while (mask) {
+        uint32_t pick = uint32_t(__builtin_ctz(mask));
+        for (uint32_t m = mask & (mask - 1); m; m &= m - 1) {
+            const uint32_t lane = uint32_t(__builtin_ctz(m));
+            if (lb2[lane] < lb2[pick]) pick = lane;
+        }
+        mask &= ~(1u << pick);
+        if (!(lb2[pick] < v.bm2f)) break;
+        const uint32_t t = c.ids[pick];
+        if (t == v.seed) continue;
+        evaluate(ctx, v, t, s);
+    }
+}
+
+/// Depth-first, nearer child first, from `root`, pruning boxes at or beyond the search radius.
+inline void searchSubtree(const Context& ctx, uint32_t root, double rootD2, VoxelSearch& v, Scratch& s)
+{
+    const auto& nodes = ctx.hierarchy.nodes();
+    const auto& clusters = ctx.hierarchy.clusters();
+    s.stack.clear();
+    s.stack.emplace_back(root, rootD2);
+    while (!s.stack.empty()) {
+        const auto [ni, d2] = s.stack.back();
+        s.stack.pop_back();
+        if (d2 >= v.bm2) continue;
+        const HierarchyNode& n = nodes[ni];
+        if (n.isLeaf()) { visitCluster(ctx, clusters[n.left], v, s); continue; }
+        const double dl = boxDistanceSqr(nodes[n.left], v.p), dr = boxDistanceSqr(nodes[n.right], v.p);
+        s.nodeTests += 2;
+        if (dl < dr) {
+            if (dr < v.bm2) s.stack.emplace_back(n.right, dr);
+            if (dl < v.bm2) s.stack.emplace_back(n.left, dl);
+        } else {
+            if (dl < v.bm2) s.stack.emplace_back(n.left, dl);
+            if (dr < v.bm2) s.stack.emplace_back(n.right, dr);
         }
     }
+}
+
+/// The frontier of a leaf: hierarchy nodes whose boxes come closer than the band limit to the
+/// box of the leaf's voxel centres, so that every triangle within the limit of a voxel of the
+/// leaf lies in one of their subtrees. Where at most kMaxFlat clusters qualify, the frontier is
+/// those clusters (flat: one vectorised pass over their boxes per voxel); otherwise at most
+/// kMaxFrontier nodes, as deep as that allows, searched as subtrees. Sorted by distance to the
+/// leaf centre (ties by node index).
+void leafFrontier(const Context& ctx, const Coord& origin, Scratch& s)
+{
+    const auto& nodes = ctx.hierarchy.nodes();
+    const Vec3d lo(origin.x() + 0.5, origin.y() + 0.5, origin.z() + 0.5), hi = lo + Vec3d(7.0);
+    const double reach = ctx.limit + ctx.margin, reach2 = reach * reach;
+    s.front.clear();
+    if (nodes.empty() || boxBoxDistanceSqr(nodes[0], lo, hi) >= reach2) { s.order.clear(); return; }
+    // flat: every cluster within reach, unless there are too many
+    bool flat = true;
+    s.next.clear();
+    s.next.push_back(0);
+    while (!s.next.empty()) {
+        const uint32_t ni = s.next.back();
+        s.next.pop_back();
+        const HierarchyNode& n = nodes[ni];
+        if (n.isLeaf()) {
+            s.front.push_back(ni);
+            if (s.front.size() > kMaxFlat) { flat = false; break; }
+            continue;
+        }
+        if (boxBoxDistanceSqr(nodes[n.right], lo, hi) < reach2) s.next.push_back(n.right);
+        if (boxBoxDistanceSqr(nodes[n.left], lo, hi) < reach2) s.next.push_back(n.left);
+    }
+    if (!flat) {
+        s.front.clear();
+        s.front.push_back(0);
+        for (bool changed = true; changed;) {
+            changed = false;
+            s.next.clear();
+            for (size_t i = 0; i < s.front.size(); ++i) {
+                const HierarchyNode& n = nodes[s.front[i]];
+                if (n.isLeaf()) { s.next.push_back(s.front[i]); continue; }
+                const bool l = boxBoxDistanceSqr(nodes[n.left], lo, hi) < reach2;
+                const bool r = boxBoxDistanceSqr(nodes[n.right], lo, hi) < reach2;
+                const size_t remaining = s.front.size() - i - 1;
+                if (s.next.size() + size_t(l) + size_t(r) + remaining > kMaxFrontier) { s.next.push_back(s.front[i]); continue; }
+                if (l) s.next.push_back(n.left);
+                if (r) s.next.push_back(n.right);
+                changed = true;
+            }
+            s.front.swap(s.next);
+        }
+    }
+    const Vec3d centre = (lo + hi) * 0.5;
+    s.order.clear();
+    for (uint32_t ni : s.front) s.order.emplace_back(boxDistanceSqr(nodes[ni], centre), ni);
+    // flat clusters stay in the hierarchy's depth-first order, so that groups of 8 consecutive
+    // ones are compact; subtrees go nearest first
+    if (!flat) std::sort(s.order.begin(), s.order.end());
+    // Single-precision copies of the boxes, relative to the leaf centre and widened by more than
+    // their rounding, so that the vectorised box distance never exceeds the true one.
+    if (s.levels.empty()) s.levels.resize(8);
+    {
+        Scratch::Level& L = s.levels[0];
+        L.count = s.order.size();
+        L.stride = (L.count + 7) & ~size_t(7);
+        L.box.assign(6 * L.stride, 1e30f);
+        for (size_t i = 0; i < L.count; ++i) {
+            const HierarchyNode& n = nodes[s.order[i].second];
+            for (int k = 0; k < 3; ++k) {
+                const double lo = n.lo[k] - centre[k], hi = n.hi[k] - centre[k];
+                const double pad = 1e-6 * (std::abs(lo) + std::abs(hi)) + 1e-6;
+                L.box[k * L.stride + i] = float(lo - pad);
+                L.box[(3 + k) * L.stride + i] = float(hi + pad);
+            }
+        }
+    }
+    s.nLevels = 1;
+    while (s.levels[s.nLevels - 1].count > 8) {
+        const Scratch::Level& below = s.levels[s.nLevels - 1];
+        if (s.nLevels == s.levels.size()) s.levels.resize(s.nLevels + 1);
+        Scratch::Level& L = s.levels[s.nLevels];
+        const Scratch::Level& B = s.levels[s.nLevels - 1];
+        L.count = (below.count + 7) / 8;
+        L.stride = (L.count + 7) & ~size_t(7);
+        L.box.assign(6 * L.stride, 1e30f);
+        for (size_t g = 0; g < L.count; ++g)
+            for (int k = 0; k < 3; ++k) {
+                float lo = std::numeric_limits<float>::max(), hi = -lo;
+                for (size_t i = 8 * g; i < 8 * g + 8 && i < B.count; ++i) {
+                    lo = std::min(lo, B.box[k * B.stride + i]);
+                    hi = std::max(hi, B.box[(3 + k) * B.stride + i]);
+                }
+                L.box[k * L.stride + g] = lo;
+                L.box[(3 + k) * L.stride + g] = hi;
+            }
+        ++s.nLevels;
+    }
+}
+
+/// Squared distances from q (relative to the leaf centre) to the boxes [begin, end) of the SoA
+/// box arrays F (6 arrays of `n` floats), into d2[0, end - begin); begin and end multiples of 4.
+/// SSE2 on x86-64.
+inline void boxDistances(const float* F, size_t n, size_t begin, size_t end, float qx, float qy, float qz, float* d2)
+{
+#if defined(__SSE2__)
+    const __m128 Q[3] = {_mm_set1_ps(qx), _mm_set1_ps(qy), _mm_set1_ps(qz)};
+    const __m128 zero = _mm_setzero_ps();
+    for (size_t i = begin; i < end; i += 4) {
+        __m128 acc = zero;
+        for (int k = 0; k < 3; ++k) {
+            const __m128 lo = _mm_loadu_ps(F + k * n + i), hi = _mm_loadu_ps(F + (3 + k) * n + i);
+            const __m128 e = _mm_max_ps(_mm_max_ps(_mm_sub_ps(lo, Q[k]), _mm_sub_ps(Q[k], hi)), zero);
+            acc = _mm_add_ps(acc, _mm_mul_ps(e, e));
+        }
+        _mm_storeu_ps(d2 + (i - begin), acc);
+    }
 #else
-    for (size_t i = 0; i < n; ++i) {
-        auto plane = [&](int f) { return F[f][i] * px + F[f + 1][i] * py + F[f + 2][i] * pz - F[f + 3][i]; };
-        const float pd = plane(0);
-        const float e = std::max(std::max(plane(4), plane(8)), std::max(plane(12), 0.0f));
-        lb2[i] = pd * pd + e * e;
-        if (lb2[i] < bm2) surv[ns++] = uint32_t(i);
+    const float q[3] = {qx, qy, qz};
+    for (size_t i = begin; i < end; ++i) {
+        float acc = 0.0f;
+        for (int k = 0; k < 3; ++k) {
+            const float e = std::max(std::max(F[k * n + i] - q[k], q[k] - F[(3 + k) * n + i]), 0.0f);
+            acc += e * e;
+        }
+        d2[i - begin] = acc;
     }
 #endif
-    return ns;
+}
+
+/// Sorts the indices idx[0, n) by d2[idx] (ties by index): insertion sort for short lists.
+inline void sortNearestFirst(uint32_t* idx, uint32_t n, const float* d2)
+{
+    auto nearer = [d2](uint32_t a, uint32_t b) { return d2[a] < d2[b] || (d2[a] == d2[b] && a < b); };
+    if (n > 16) { std::sort(idx, idx + n, nearer); return; }
+    for (uint32_t k = 1; k < n; ++k) {
+        const uint32_t x = idx[k];
+        uint32_t j = k;
+        for (; j > 0 && nearer(x, idx[j - 1]); --j) idx[j] = idx[j - 1];
+        idx[j] = x;
+    }
 }
 
 /// Fills one output leaf with origin `origin`; returns nullptr if no voxel is active.
 // cpOut / triOut (optional, together): receive leaves of closest-point offsets (voxel units) and
 // closest-triangle indices for the active voxels.
-FloatLeaf* computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, Vec3fLeaf** cpOut = nullptr,
-                       Int32Leaf** triOut = nullptr)
+struct LeafResult
 {
-    const int R = ctx.R, D = ctx.D, W = ctx.words;
-    const Coord rmin = origin.offsetBy(-R), rmax = origin.offsetBy(7 + R);
-    const size_t nRows = size_t(D) * D;
-    auto rowIndex = [D](int x, int y) { return size_t(x) * D + y; };
+    std::unique_ptr<FloatLeaf> sdf;
+    std::unique_ptr<Vec3fLeaf> cp;
+    std::unique_ptr<Int32Leaf> tri;
+};
 
-    // ---- gather the boundary cells of the region (one gather per leaf, cf. Yin et al. §6.2).
-    // Region rows run along z, like the z-bytes of a VDB leaf's value mask.
-    s.bits.assign(nRows * W, 0ull);
-    s.cellOrd.clear();
-    uint64_t entries = 0;
-    const auto& tree = ctx.lists.tree();
-    for (int lx = rmin.x() & ~7; lx <= rmax.x(); lx += 8)
-        for (int ly = rmin.y() & ~7; ly <= rmax.y(); ly += 8)
-            for (int lz = rmin.z() & ~7; lz <= rmax.z(); lz += 8) {
-                const auto* leaf = tree.probeConstLeaf(Coord(lx, ly, lz));
-                if (!leaf) continue;
-                const auto& mask = leaf->getValueMask();
-                const int x0 = std::max(lx, rmin.x()), x1 = std::min(lx + 7, rmax.x());
-                const int y0 = std::max(ly, rmin.y()), y1 = std::min(ly + 7, rmax.y());
-                const int z0 = std::max(lz, rmin.z()), z1 = std::min(lz + 7, rmax.z());
-                const uint32_t zsel = (0xffu << (z0 - lz)) & (0xffu >> (7 - (z1 - lz)));
-                for (int x = x0; x <= x1; ++x) {
-                    const uint64_t word = mask.template getWord<uint64_t>(x - lx);
-                    for (int y = y0; y <= y1; ++y) {
-                        uint32_t zb = uint32_t(word >> (8 * (y - ly))) & zsel;
-                        if (!zb) continue;
-                        const int rx = x - rmin.x(), ry = y - rmin.y();
-                        const size_t row = rowIndex(rx, ry);
-                        while (zb) {
-                            const int bz = __builtin_ctz(zb);
-                            zb &= zb - 1;
-                            const int rz = lz + bz - rmin.z();
-                            s.bits[row * W + (rz >> 6)] |= (1ull << (rz & 63));
-                            const uint32_t ord = leaf->getValue(openvdb::Index(((x - lx) << 6) | ((y - ly) << 3) | bz));
-                            s.cellOrd.push_back(ord);
-                            entries += ctx.lists.listSize(ord);
-                        }
-                    }
-                }
-            }
-    if (s.cellOrd.empty()) return nullptr;
+LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool wantClosest)
+{
+    LeafResult res;
+    leafFrontier(ctx, origin, s);
+    if (s.order.empty()) return res;
+    const auto& nodes = ctx.hierarchy.nodes();
 
-    // ---- reach mask: voxels with at least one boundary cell closer than the band limit.
-    // zwin[k][row] = the 8 bits of the leaf's z-range (region z = R..R+7) of the row dilated
-    // along z by k cells; a voxel is within reach if, for some row offset (dx, dy) with its
-    // largest admissible dz = reachZ, zwin[reachZ][row(x+dx, y+dy)] has its bit set. Rows are
-    // laid out x-major, so for fixed x the 8 y-neighbours are 8 consecutive bytes: one 64-bit
-    // load covers a whole (vx, ·) line of the leaf.
-    auto bits8 = [&](const uint64_t* row, int pos) -> uint32_t { // 8 bits starting at pos (may be < 0)
-        if (pos < 0) { return pos <= -8 ? 0u : uint32_t(bits8Helper(row, 0, W) << (-pos)) & 0xffu; }
-        return bits8Helper(row, pos, W);
-    };
-    s.zwin.assign(size_t(R + 1) * nRows + 8, 0u);
-    for (size_t r = 0; r < nRows; ++r) {
-        const uint64_t* row = &s.bits[r * W];
-        uint32_t acc = bits8(row, R);
-        s.zwin[r] = uint8_t(acc);
-        for (int k = 1; k <= R; ++k) {
-            acc |= bits8(row, R + k) | bits8(row, R - k);
-            s.zwin[size_t(k) * nRows + r] = uint8_t(acc);
-        }
-    }
-    uint8_t reach[64]; // [vx * 8 + vy]: bit vz set when the voxel is within reach
-    uint64_t any = 0;
-    for (int vx = 0; vx < 8; ++vx) {
-        uint64_t line = 0; // byte vy = reach bits of (vx, vy, ·)
-        for (const RowOffset& ro : ctx.rows) {
-            uint64_t w;
-            std::memcpy(&w, &s.zwin[size_t(ro.reachZ) * nRows + rowIndex(vx + R + ro.dx, R + ro.dy)], 8);
-            line |= w;
-        }
-        std::memcpy(&reach[vx * 8], &line, 8);
-        any |= line;
-    }
-    const bool anyReach = any != 0;
-    if (!anyReach) return nullptr;
-
-    // ---- the leaf's triangle set T: every triangle listed in a boundary cell of the region.
-    // Any triangle closer than `limit` to a voxel of this leaf has its closest point in such a
-    // cell (the layer rule of §4.1 bounds the cell's minimum distance), so T is complete.
-    size_t hsize = 64;
-    while (hsize < 2 * entries) hsize <<= 1;
-    const uint32_t hmask = uint32_t(hsize - 1);
-    s.hashKey.assign(hsize, kNone);
-    s.tris.clear();
-    for (size_t k = 0; k < s.cellOrd.size(); ++k) {
-        const uint32_t ord = s.cellOrd[k];
-        for (const uint32_t* t = ctx.lists.listBegin(ord); t != ctx.lists.listEnd(ord); ++t) {
-            uint32_t h = (*t * 2654435761u) & hmask;
-            while (s.hashKey[h] != kNone && s.hashKey[h] != *t) h = (h + 1) & hmask;
-            if (s.hashKey[h] != kNone) continue;
-            s.hashKey[h] = *t;
-            const Vec3I& tri = ctx.mesh.triangles[*t];
-            PreparedTri p;
-            p.a = ctx.cellPts[tri[0]];
-            p.b = ctx.cellPts[tri[1]];
-            p.c = ctx.cellPts[tri[2]];
-            p.id = *t;
-            s.tris.push_back(p);
-        }
-    }
-    // Lower-bound planes in single precision, relative to the leaf centre (small numbers):
-    // the triangle's plane and the three in-plane edge lines (outward normals). For a point p,
-    // dist² ≥ plane(p)² + max(0, edge_k(p))², exact in face and edge regions.
-    const size_t nT = s.tris.size(), nTpad = (nT + 7) & ~size_t(7);
-    s.soa.assign(16 * nTpad, 0.0f);
-    float* F[16];
-    for (int f = 0; f < 16; ++f) F[f] = s.soa.data() + f * nTpad;
-    const Vec3d centre(origin.x() + 4.0, origin.y() + 4.0, origin.z() + 4.0);
-    for (size_t i = 0; i < nT; ++i) {
-        const PreparedTri& t = s.tris[i];
-        const Vec3d& n = ctx.normals.faceNormal(t.id);
-        const Vec3d v[3] = {t.a - centre, t.b - centre, t.c - centre};
-        F[0][i] = float(n[0]); F[1][i] = float(n[1]); F[2][i] = float(n[2]); F[3][i] = float(n.dot(v[0]));
-        for (int k = 0; k < 3; ++k) {
-            Vec3d m = (v[(k + 1) % 3] - v[k]).cross(n);
-            const double len = m.length();
-            m = len > 0.0 ? m / len : Vec3d(0.0);
-            F[4 + 4 * k][i] = float(m[0]);
-            F[5 + 4 * k][i] = float(m[1]);
-            F[6 + 4 * k][i] = float(m[2]);
-            F[7 + 4 * k][i] = float(m.dot(v[k]));
-        }
-    }
-    for (size_t i = nT; i < nTpad; ++i) F[3][i] = 1e30f; // padding never survives
-    if (s.lb2.size() < nTpad) { s.lb2.resize(nTpad); s.surv.resize(nTpad); }
-
-    // ---- per voxel (Chang §4.1 culling, with triangle-level bounds instead of cell groups):
-    // the previous voxel's closest triangle gives an upper bound; the bounds of all of T are
-    // computed in one vectorised pass; survivors are evaluated exactly in increasing bound
+    // Per voxel (Chang §4.1's culling, with a hierarchy instead of cell layers): the previous
+    // voxel's closest triangle gives an upper bound; the frontier's subtrees are searched nearer
+    // box first, clusters by their single-precision bounds, survivors exactly in increasing bound
     // order until the bound passes the best distance. The sign is the pseudonormal of the
     // closest feature (§4.2).
-    auto* out = new FloatLeaf(origin, ctx.background, false);
-    Vec3fLeaf* cpLeaf = cpOut ? new Vec3fLeaf(origin, openvdb::Vec3f(0.0f), false) : nullptr;
-    Int32Leaf* triLeaf = cpOut ? new Int32Leaf(origin, -1, false) : nullptr;
+    res.sdf.reset(new FloatLeaf(origin, ctx.background, false));
+    if (wantClosest) {
+        res.cp.reset(new Vec3fLeaf(origin, openvdb::Vec3f(0.0f), false));
+        res.tri.reset(new Int32Leaf(origin, -1, false));
+    }
     uint64_t active = 0;
     const float bg = ctx.background;
-    // Cells; covers the single-precision rounding of the bounds. The bound terms that matter are
-    // differences of values of magnitude <= limit + ~20 cells (the plane or edge line passes that
-    // close to the leaf centre), so their rounding error is a few ulps of that: ~1e-5 at limit 3.
-    const double kMargin = 1e-4 * std::max(1.0, (ctx.limit + 20.0) / 32.0);
-    auto bitAt = [&](int x, int y, int z) {
-        return (s.bits[rowIndex(x, y) * W + (z >> 6)] >> (z & 63)) & 1ull;
-    };
     uint32_t seed = kNone;
-    float* lb2 = s.lb2.data();
-    uint32_t* surv = s.surv.data();
-    for (int vx = 0; vx < 8; ++vx) {
-        for (int vy = 0; vy < 8; ++vy) {
-            uint32_t reachBits = reach[vx * 8 + vy];
-            const int cx = vx + R, cy = vy + R;
-            while (reachBits) {
-                const int vz = __builtin_ctz(reachBits);
-                reachBits &= reachBits - 1;
-                const int cz = vz + R;
+    VoxelSearch v;
+    const auto& clusters = ctx.hierarchy.clusters();
+    // Visits boxes [first, last) (at most 8, first a multiple of 4) of `level` nearest first,
+    // descending into the 8 boxes below each one closer than the search radius.
+    auto descend = [&](auto&& self, size_t level, size_t first, size_t last, float qx, float qy, float qz) -> void {
+        const Scratch::Level& L = s.levels[level];
+        alignas(16) float d2[8];
+        boxDistances(L.box.data(), L.stride, first, first + 8, qx, qy, qz, d2);
+        uint32_t near[8], nn = 0;
+        for (size_t i = first; i < last; ++i) {
+            ++s.nodeTests;
+            if (d2[i - first] < v.bm2f) near[nn++] = uint32_t(i - first);
+        }
+        sortNearestFirst(near, nn, d2);
+        for (uint32_t k = 0; k < nn; ++k) {
+            const uint32_t j = near[k];
+            if (!(d2[j] < v.bm2f)) continue;
+            const size_t i = first + j;
+            if (level > 0) {
+                const size_t below = s.levels[level - 1].count;
+                self(self, level - 1, 8 * i, std::min(8 * i + 8, below), qx, qy, qz);
+                continue;
+            }
+            const uint32_t ni = s.order[i].second;
+            const HierarchyNode& n = nodes[ni];
+            if (n.isLeaf()) visitCluster(ctx, clusters[n.left], v, s);
+            else searchSubtree(ctx, ni, double(d2[j]), v, s);
+        }
+    };
+    for (int vx = 0; vx < 8; ++vx)
+        for (int vy = 0; vy < 8; ++vy)
+            for (int vz = 0; vz < 8; ++vz) {
                 ++s.candidateVoxels;
-                if (bitAt(cx, cy, cz) || bitAt(cx - 1, cy, cz) || bitAt(cx + 1, cy, cz) ||
-                    bitAt(cx, cy - 1, cz) || bitAt(cx, cy + 1, cz) || bitAt(cx, cy, cz - 1) ||
-                    bitAt(cx, cy, cz + 1))
-                    ++s.localCells;
-                const Vec3d p(origin.x() + vx + 0.5, origin.y() + vy + 0.5, origin.z() + vz + 0.5);
-                double best2 = ctx.limit2;
-                uint32_t bestT = kNone;
-                TriangleClosestPoint bestCp{Vec3d(0.0), 0.0, TriangleFeature::Face};
-                if (seed != kNone) {
-                    const PreparedTri& t = s.tris[seed];
-                    ++s.evaluations;
-                    const TriangleClosestPoint cp = closestPointOnTriangle(p, t.a, t.b, t.c);
-                    if (cp.distanceSqr < best2) { best2 = cp.distanceSqr; bestT = seed; bestCp = cp; }
-                }
-                // Bounds of every triangle of T (SIMD), survivors below the current best.
-                double bm = std::sqrt(best2) + kMargin;
-                float bm2 = float(bm * bm);
-                const uint32_t ns = computeBounds(F, nTpad, float(vx - 3.5), float(vy - 3.5), float(vz - 3.5), bm2, lb2, surv);
-                s.boundTests += nT;
-                // Evaluate survivors in increasing bound order (lazy selection: usually the first
-                // one is the closest and the next bound already exceeds it).
-                for (uint32_t done = 0; done < ns; ++done) {
-                    uint32_t pick = done;
-                    for (uint32_t k = done + 1; k < ns; ++k)
-                        if (lb2[surv[k]] < lb2[surv[pick]] || (lb2[surv[k]] == lb2[surv[pick]] && surv[k] < surv[pick])) pick = k;
-                    std::swap(surv[done], surv[pick]);
-                    const uint32_t lt = surv[done];
-                    if (lb2[lt] >= bm2) break;
-                    if (lt == seed) continue;
-                    const PreparedTri& t = s.tris[lt];
-                    ++s.evaluations;
-                    const TriangleClosestPoint cp = closestPointOnTriangle(p, t.a, t.b, t.c);
-                    if (cp.distanceSqr < best2) {
-                        best2 = cp.distanceSqr;
-                        bestT = lt;
-                        bestCp = cp;
-                        bm = std::sqrt(best2) + kMargin;
-                        bm2 = float(bm * bm);
-                    }
-                }
-
-                seed = bestT;
-                if (bestT == kNone) continue; // nothing within reach: sign left to the flood fill
+                v.p = Vec3d(origin.x() + vx + 0.5, origin.y() + vy + 0.5, origin.z() + vz + 0.5);
+                v.best2 = ctx.limit2;
+                v.bestT = kNone;
+                v.seed = seed;
+                v.tighten(ctx.margin);
+                if (seed != kNone) evaluate(ctx, v, seed, s);
+                const size_t top = s.nLevels - 1;
+                descend(descend, top, 0, s.levels[top].count, float(vx - 3.5), float(vy - 3.5), float(vz - 3.5));
+                seed = v.bestT;
+                if (v.bestT == kNone) continue; // nothing within reach: sign left to the flood fill
                 const openvdb::Index offset = openvdb::Index((vx << 6) | (vy << 3) | vz);
-                const double d = std::sqrt(best2);
-                const bool inside = ctx.normals.isInside(s.tris[bestT].id, bestCp, p);
+                const double d = std::sqrt(v.best2);
+                const bool inside = ctx.normals.isInside(v.bestT, v.bestCp, v.p);
                 if (inside ? d < ctx.intW : d < ctx.extW) {
-                    out->setValueOn(offset, float((inside ? -d : d) * ctx.voxelSize));
-                    if (cpLeaf) {
-                        cpLeaf->setValueOn(offset, openvdb::Vec3f(bestCp.point - p));
-                        triLeaf->setValueOn(offset, int32_t(s.tris[bestT].id));
+                    res.sdf->setValueOn(offset, float((inside ? -d : d) * ctx.voxelSize));
+                    if (wantClosest) {
+                        res.cp->setValueOn(offset, openvdb::Vec3f(v.bestCp.point - v.p));
+                        res.tri->setValueOn(offset, int32_t(v.bestT));
                     }
                     ++active;
                 } else {
-                    out->setValueOff(offset, inside ? -bg : bg);
+                    res.sdf->setValueOff(offset, inside ? -bg : bg);
                 }
             }
+    s.activeVoxels += active;
+    if (active == 0) return LeafResult{};
+    return res;
+}
+
+/// The candidate leaves: every leaf whose voxel-centre box comes within the band limit of a
+/// triangle (a superset: boxes dilated by the limit stand for balls), as a mask at leaf
+/// resolution (coordinate = leaf origin / 8). Nodes whose box is small next to the reach are
+/// marked by their dilated box; larger clusters triangle by triangle, by recursive halving of
+/// the triangle's dilated bounding block with a conservative triangle–box test, so the work
+/// follows the leaves touched whatever the triangles' shape.
+class CandidateLeaves
+{
+public:
+    explicit CandidateLeaves(const Context& ctx) : mCtx(ctx), mBlock(std::max(1, int(std::floor(ctx.limit / 8.0)))) {}
+
+    /// Leaf-coordinate range of the cell-space box [lo, hi] dilated by the reach.
+    openvdb::CoordBBox leafRange(const Vec3d& lo, const Vec3d& hi) const
+    {
+        const double r = mCtx.limit + mCtx.margin;
+        openvdb::Coord a, b;
+        for (int k = 0; k < 3; ++k) {
+            a[k] = int(std::ceil((lo[k] - r - 7.5) / 8.0));
+            b[k] = int(std::floor((hi[k] + r - 0.5) / 8.0));
+        }
+        return openvdb::CoordBBox(a, b);
+    }
+
+    /// The nodes to rasterize: a cut of the hierarchy where a node's box is at most ~2 reaches
+    /// (or 2 leaves) wide, or a cluster.
+    std::vector<uint32_t> cut() const
+    {
+        std::vector<uint32_t> out, stack{0};
+        const auto& nodes = mCtx.hierarchy.nodes();
+        if (nodes.empty()) return out;
+        const double small = mCtx.limit;
+        while (!stack.empty()) {
+            const uint32_t ni = stack.back();
+            stack.pop_back();
+            const HierarchyNode& n = nodes[ni];
+            const double ext = std::max({n.hi[0] - n.lo[0], n.hi[1] - n.lo[1], n.hi[2] - n.lo[2]});
+            if (n.isLeaf() || ext <= small) { out.push_back(ni); continue; }
+            stack.push_back(n.right);
+            stack.push_back(n.left);
+        }
+        return out;
+    }
+
+    void rasterizeNode(uint32_t ni, openvdb::MaskTree& mask) const
+    {
+        const HierarchyNode& n = mCtx.hierarchy.nodes()[ni];
+        const double ext = std::max({n.hi[0] - n.lo[0], n.hi[1] - n.lo[1], n.hi[2] - n.lo[2]});
+        if (!n.isLeaf() || ext <= std::max(8.0, mCtx.limit)) {
+            mask.fill(leafRange(Vec3d(n.lo[0], n.lo[1], n.lo[2]), Vec3d(n.hi[0], n.hi[1], n.hi[2])), true, true);
+            return;
+        }
+        const TriangleCluster& c = mCtx.hierarchy.clusters()[n.left];
+        for (uint32_t lane = 0; lane < c.count; ++lane) {
+            const Vec3I& tri = mCtx.mesh.triangles[c.ids[lane]];
+            const Vec3d& a = mCtx.cellPts[tri[0]];
+            const Vec3d& b = mCtx.cellPts[tri[1]];
+            const Vec3d& cc = mCtx.cellPts[tri[2]];
+            Vec3d lo, hi;
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min({a[k], b[k], cc[k]});
+                hi[k] = std::max({a[k], b[k], cc[k]});
+            }
+            rasterizeTriangle(a, b, cc, leafRange(lo, hi), mask);
         }
     }
-    s.activeVoxels += active;
-    if (active == 0) { delete out; delete cpLeaf; delete triLeaf; return nullptr; }
-    if (cpOut) { *cpOut = cpLeaf; *triOut = triLeaf; }
-    return out;
-}
+
+private:
+    void rasterizeTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c, const openvdb::CoordBBox& block,
+                           openvdb::MaskTree& mask) const
+    {
+        const double r = mCtx.limit + mCtx.margin;
+        const Vec3d lo(block.min().x() * 8.0 + 0.5 - r, block.min().y() * 8.0 + 0.5 - r, block.min().z() * 8.0 + 0.5 - r);
+        const Vec3d hi(block.max().x() * 8.0 + 7.5 + r, block.max().y() * 8.0 + 7.5 + r, block.max().z() * 8.0 + 7.5 + r);
+        if (!triangleBoxOverlap((lo + hi) * 0.5, (hi - lo) * 0.5, a, b, c, 1e-6)) return;
+        const openvdb::Coord dim = block.dim();
+        int axis = 0;
+        for (int k = 1; k < 3; ++k)
+            if (dim[k] > dim[axis]) axis = k;
+        if (dim[axis] <= mBlock) { mask.fill(block, true, true); return; }
+        openvdb::CoordBBox l = block, h = block;
+        const int mid = block.min()[axis] + dim[axis] / 2;
+        l.max()[axis] = mid - 1;
+        h.min()[axis] = mid;
+        rasterizeTriangle(a, b, c, l, mask);
+        rasterizeTriangle(a, b, c, h, mask);
+    }
+
+    const Context& mCtx;
+    int mBlock; // blocks this many leaves wide (about the reach) are marked whole
+};
 
 void checkWidth(const char* name, float w)
 {
@@ -409,10 +531,10 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     tbb::parallel_for(tbb::blocked_range<size_t>(0, cellPts.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) cellPts[i] = mesh.points[i] / h + Vec3d(0.5);
     });
-    PseudoNormals normals(mesh);
+    LazyPseudoNormals normals(mesh);
     std::vector<uint32_t> use;
     use.reserve(mesh.triangles.size());
-    double area = 0.0; // voxel units, for the memory estimate
+    double area = 0.0; // voxel units, for the first memory estimate
     for (uint32_t t = 0; t < mesh.triangles.size(); ++t) {
         if (normals.isDegenerate(t)) { ++stats.skippedDegenerate; continue; }
         const Vec3I& tri = mesh.triangles[t];
@@ -424,7 +546,9 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
         throw InvalidMeshError((mesh.source.empty() ? std::string("mesh") : mesh.source) +
                                ": every triangle is degenerate (zero area)");
 
-    // Memory guard: a band of width (ext + int) over the surface area, both sides.
+    // First memory guard, before any work that grows with the band: a band of width (ext + int)
+    // over the surface area. It cannot see a wide band's growth around a compact surface; the
+    // count of candidate leaves below can, and is checked before any output leaf is allocated.
     const double estimate = area * (extW + intW + 2.0) + double(use.size());
     if (options.maxVoxels > 0 && estimate > double(options.maxVoxels)) {
         std::ostringstream os;
@@ -434,100 +558,94 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
         throw ResourceLimitError(os.str());
     }
 
-    // ---- §3: voxelization + two-pass triangle lists
-    VoxelizerCounters vc;
-    TriangleListTree lists = TriangleListTree::build(cellPts, mesh.triangles, use, &vc, interrupter);
-    stats.microtriangles = vc.microtriangles;
-    stats.caseCounts = vc.cases;
-    stats.boundaryCells = lists.cellCount();
-    stats.triangleListEntries = lists.entryCount();
-    stats.secondsLists = lists.secondsLists();
-    stats.secondsVoxelize = secondsSince(t0) - stats.secondsLists; // checks, normals, pass 1
-    progress_internal::check(interrupter, 20);
+    // ---- the closest-triangle hierarchy (replaces the paper's voxelization and cell lists)
+    const TriangleHierarchy hierarchy(mesh, cellPts, use, interrupter);
+    stats.hierarchyNodes = hierarchy.nodes().size();
+    stats.clusters = hierarchy.clusters().size();
+    Context ctx{mesh, cellPts, hierarchy, normals, h, extW, intW, limit, limit * limit, 0.0, float(extW * h)};
+    // Single-precision bounds are evaluated at |q| <= cluster radius + limit + margin; their
+    // rounding is a few ulps of that (covered 8x), and never below the old 1e-4 cell.
+    ctx.margin = std::max(1e-4 * std::max(1.0, (limit + 20.0) / 32.0), 2e-6 * (hierarchy.maxClusterRadius() + limit + 2.0));
+    stats.secondsHierarchy = secondsSince(t0);
+    progress_internal::check(interrupter, 10);
 
-    // ---- candidate output leaves: leaves within reach R of a boundary-cell leaf
-    Context ctx{mesh, cellPts, lists, normals, h, extW, intW, limit, limit * limit, 0, 0, 1, {}, float(extW * h)};
-    ctx.R = int(std::ceil(limit + 0.5)) - 1;
-    if (ctx.R < 1) ctx.R = 1;
-    ctx.D = 8 + 2 * ctx.R;
-    ctx.words = (ctx.D + 63) / 64;
-    for (int dx = -ctx.R; dx <= ctx.R; ++dx)
-        for (int dy = -ctx.R; dy <= ctx.R; ++dy) {
-            const double m2 = minAxisDist(dx) * minAxisDist(dx) + minAxisDist(dy) * minAxisDist(dy);
-            if (m2 >= ctx.limit2) continue;
-            int reachZ = 0; // largest |dz| with m2 + minAxisDist(dz)^2 < limit^2
-            while (reachZ < ctx.R && m2 + minAxisDist(reachZ + 1) * minAxisDist(reachZ + 1) < ctx.limit2) ++reachZ;
-            ctx.rows.push_back({dx, dy, m2, reachZ});
-        }
-    std::stable_sort(ctx.rows.begin(), ctx.rows.end(), [](const RowOffset& a, const RowOffset& b) { return a.m2 < b.m2; });
-
+    // ---- candidate leaves, and the voxel budget from their count (the dilated surface's real
+    //      volume at leaf resolution, not area × width)
     const auto t1 = Clock::now();
-    std::vector<Coord> listLeafOrigins;
-    listLeafOrigins.reserve(lists.tree().leafCount());
-    for (auto it = lists.tree().cbeginLeaf(); it; ++it) listLeafOrigins.push_back(it->origin());
-    tbb::enumerable_thread_specific<std::vector<Coord>> candTls;
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, listLeafOrigins.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
-        auto& out = candTls.local();
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            const auto* leaf = lists.tree().probeConstLeaf(listLeafOrigins[i]);
-            openvdb::CoordBBox bb;
-            leaf->evalActiveBoundingBox(bb, false);
-            bb.expand(ctx.R);
-            for (int z = bb.min().z() & ~7; z <= bb.max().z(); z += 8)
-                for (int y = bb.min().y() & ~7; y <= bb.max().y(); y += 8)
-                    for (int x = bb.min().x() & ~7; x <= bb.max().x(); x += 8) out.emplace_back(x, y, z);
-        }
+    CandidateLeaves raster(ctx);
+    const std::vector<uint32_t> cut = raster.cut();
+    tbb::enumerable_thread_specific<openvdb::MaskTree> maskTls;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, cut.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+        auto& m = maskTls.local();
+        for (size_t i = r.begin(); i != r.end(); ++i) raster.rasterizeNode(cut[i], m);
     });
-    std::vector<Coord> cand;
-    for (auto& v : candTls) cand.insert(cand.end(), v.begin(), v.end());
-    tbb::parallel_sort(cand.begin(), cand.end());
-    cand.erase(std::unique(cand.begin(), cand.end()), cand.end());
-    if (options.maxVoxels > 0 && double(cand.size()) * 512.0 > 4.0 * double(options.maxVoxels)) {
+    openvdb::MaskTree leafMask;
+    for (auto& m : maskTls) leafMask.topologyUnion(m);
+    maskTls.clear();
+    const uint64_t leafCount = leafMask.activeVoxelCount();
+    const double budgetVoxels = double(leafCount) * 512.0;
+    if (options.maxVoxels > 0 && budgetVoxels > double(options.maxVoxels)) {
         std::ostringstream os;
-        os << "the band would need " << cand.size() << " leaf nodes (" << cand.size() * 512
-           << " voxels), more than the limit allows; use a larger voxel size or narrower band";
+        os << "the band would need up to " << leafCount << " leaf nodes (" << uint64_t(budgetVoxels)
+           << " voxels within " << limit << " voxels of the surface), more than the limit of " << options.maxVoxels
+           << " voxels; use a larger voxel size or a narrower band";
         throw ResourceLimitError(os.str());
     }
+    std::vector<Coord> cand;
+    cand.reserve(size_t(leafCount));
+    for (auto it = leafMask.cbeginValueOn(); it; ++it) {
+        if (it.isVoxelValue()) { cand.push_back(it.getCoord() << 3); continue; }
+        const openvdb::CoordBBox bb = it.getBoundingBox();
+        for (int x = bb.min().x(); x <= bb.max().x(); ++x)
+            for (int y = bb.min().y(); y <= bb.max().y(); ++y)
+                for (int z = bb.min().z(); z <= bb.max().z(); ++z) cand.push_back(Coord(x, y, z) << 3);
+    }
+    leafMask.clear();
+    std::sort(cand.begin(), cand.end());
+    stats.candidateLeaves = cand.size();
+    stats.secondsCandidates = secondsSince(t1);
+    progress_internal::check(interrupter, 20);
 
-    // ---- §4: distances, leaf by leaf
-    std::vector<FloatLeaf*> outLeaves(cand.size(), nullptr);
-    std::vector<Vec3fLeaf*> cpLeaves(wantClosest ? cand.size() : 0, nullptr);
-    std::vector<Int32Leaf*> triLeaves(wantClosest ? cand.size() : 0, nullptr);
+    // ---- §4: distances, leaf by leaf (the interrupter is polled about every 20 ms)
+    const auto t1d = Clock::now();
+    std::vector<LeafResult> outLeaves(cand.size());
     tbb::enumerable_thread_specific<Scratch> scratchTls;
     std::atomic<bool> stop{false};
     std::atomic<size_t> done{0};
-    const size_t reportEvery = std::max<size_t>(1, cand.size() / 50);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, cand.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
-        if (stop.load(std::memory_order_relaxed)) return;
+    std::atomic<int64_t> nextPoll{0};
+    const int64_t pollEvery = 20'000'000; // ns
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, cand.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
         Scratch& s = scratchTls.local();
-        for (size_t i = r.begin(); i != r.end(); ++i)
-            outLeaves[i] = computeLeaf(ctx, cand[i], s, wantClosest ? &cpLeaves[i] : nullptr,
-                                       wantClosest ? &triLeaves[i] : nullptr);
-        const size_t d = done.fetch_add(r.size()) + r.size();
-        if (interrupter && (d / reportEvery) != ((d - r.size()) / reportEvery)) {
-            if (interrupter->wasInterrupted(20 + int(75.0 * double(d) / double(cand.size())))) stop = true;
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            if (stop.load(std::memory_order_relaxed)) return;
+            outLeaves[i] = computeLeaf(ctx, cand[i], s, wantClosest);
+            const size_t d = done.fetch_add(1, std::memory_order_relaxed) + 1;
+            if (interrupter) {
+                const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count();
+                int64_t due = nextPoll.load(std::memory_order_relaxed);
+                if (now >= due && nextPoll.compare_exchange_strong(due, now + pollEvery)) {
+                    if (interrupter->wasInterrupted(20 + int(75.0 * double(d) / double(cand.size())))) stop = true;
+                }
+            }
         }
     });
-    if (stop) {
-        for (FloatLeaf* l : outLeaves) delete l;
-        for (Vec3fLeaf* l : cpLeaves) delete l;
-        for (Int32Leaf* l : triLeaves) delete l;
-        throw InterruptedError("interrupted while computing distances");
-    }
+    if (stop) throw InterruptedError("interrupted while computing distances");
     for (const Scratch& s : scratchTls) {
         stats.distanceEvaluations += s.evaluations;
         stats.boundTests += s.boundTests;
+        stats.nodeTests += s.nodeTests;
         stats.candidateVoxels += s.candidateVoxels;
         stats.activeVoxels += s.activeVoxels;
-        stats.localCells += s.localCells;
     }
-    stats.secondsDistance = secondsSince(t1);
+    stats.secondsDistance = secondsSince(t1d);
+    stats.secondsVoxelize = stats.secondsHierarchy;
+    stats.secondsLists = stats.secondsCandidates;
 
     // ---- assemble the tree (serial, fixed order), signed flood fill, grid
     const auto t2 = Clock::now();
     auto tree = std::make_shared<openvdb::FloatTree>(float(extW * h));
-    for (FloatLeaf* l : outLeaves)
-        if (l) tree->addLeaf(l);
+    for (LeafResult& l : outLeaves)
+        if (l.sdf) tree->addLeaf(l.sdf.release());
     openvdb::tools::signedFloodFill(*tree);
     auto grid = openvdb::FloatGrid::create(tree);
     grid->setTransform(openvdb::math::Transform::createLinearTransform(h));
@@ -537,15 +655,15 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     result.levelSet = grid;
     if (wantClosest) {
         auto cpTree = std::make_shared<openvdb::Vec3fTree>(openvdb::Vec3f(0.0f));
-        for (Vec3fLeaf* l : cpLeaves)
-            if (l) cpTree->addLeaf(l);
+        for (LeafResult& l : outLeaves)
+            if (l.cp) cpTree->addLeaf(l.cp.release());
         result.closestPoints = openvdb::Vec3fGrid::create(cpTree);
         result.closestPoints->setTransform(grid->transform().copy());
         result.closestPoints->setName(options.gridName + "_closest");
         result.closestPoints->setVectorType(openvdb::VEC_CONTRAVARIANT_RELATIVE);
         auto triTree = std::make_shared<openvdb::Int32Tree>(-1);
-        for (Int32Leaf* l : triLeaves)
-            if (l) triTree->addLeaf(l);
+        for (LeafResult& l : outLeaves)
+            if (l.tri) triTree->addLeaf(l.tri.release());
         result.closestTriangles = openvdb::Int32Grid::create(triTree);
         result.closestTriangles->setTransform(grid->transform().copy());
         result.closestTriangles->setName(options.gridName + "_triangle");

@@ -9,6 +9,7 @@
 #include <levelforge/core/MeshValidation.h>
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <array>
@@ -18,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <random>
 #include <string>
@@ -714,4 +716,155 @@ TEST(MeshIO, OutOfRangeIndicesNameTheFace)
         parts.insert(parts.begin(), p);
         expectThrowWith<InvalidMeshError>([&] { readMesh(p); }, parts);
     }
+}
+
+TEST(MeshIO, HeaderCountsBeyondTheFileNameTheCount)
+{
+    // Counts the rest of the file cannot hold are caught before anything is sized from them; the
+    // message names the file, the count and the bytes that are there.
+    const fs::path dir = scratchDir("meshio_claims");
+    const std::string props = "property float x\nproperty float y\nproperty float z\n";
+    const std::string faceProp = "property list uchar int vertex_indices\n";
+    std::string plyBin = binaryPly({Vec3d(0, 0, 0), Vec3d(1, 0, 0), Vec3d(0, 1, 0)}, {{0, 1, 2}});
+    plyBin.replace(plyBin.find("element vertex 3"), 16, "element vertex 400000000");
+    std::string plyList = binaryPly({Vec3d(0, 0, 0), Vec3d(1, 0, 0), Vec3d(0, 1, 0)}, {{0, 1, 2}});
+    plyList[plyList.size() - 13] = char(250); // the face's list length
+    std::string offBin = "OFF BINARY\n";
+    const uint32_t counts[3] = {3, 2000000000u, 0};
+    appendBytes(offBin, counts, 12);
+    const float xyz[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    appendBytes(offBin, xyz, 36);
+    std::string stlb = binaryStl({{0, 0, 0, 1, 0, 0, 0, 1, 0}});
+    const uint32_t lie = 1000000;
+    std::memcpy(&stlb[80], &lie, 4);
+    std::string stlNul = stlb;
+    stlNul[0] = '\0'; // a binary header (not "solid ...")
+    struct Case { const char* name; std::string content; std::vector<std::string> parts; };
+    const std::vector<Case> cases = {
+        {"v.off", "OFF\n400000000 1 0\n0 0 0\n1 0 0\n", {"400000000 vertices", "only 12 bytes after the header"}},
+        {"f.off", "OFF\n3 100000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", {"100000000 faces", "bytes after the header"}},
+        {"fb.off", offBin, {"2000000000 faces", "only 36 bytes after the header"}},
+        {"v.ply", "ply\nformat ascii 1.0\nelement vertex 400000000\n" + props + "element face 1\n" + faceProp +
+                  "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", {"400000000 vertices", "only 26 bytes after the header"}},
+        {"f.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + props + "element face 300000000\n" + faceProp +
+                  "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", {"300000000 faces", "bytes after the header"}},
+        {"vb.ply", plyBin, {"400000000 vertices", "bytes after the header"}},
+        {"list.ply", plyList, {"face 0", "claims 250 items"}},
+        {"lie.stlb", stlb, {"1000000 triangles", "only 50 bytes after the header", "ends inside facet 1"}},
+        {"lie.stl", stlNul, {"not a valid binary STL", "1000000 triangles", "only 50 bytes after the header"}},
+    };
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.name);
+        const std::string p = writeFile(dir, c.name, c.content);
+        std::vector<std::string> parts = c.parts;
+        parts.insert(parts.begin(), p);
+        expectThrowWith<InvalidMeshError>([&] { readMesh(p); }, parts);
+    }
+}
+
+namespace {
+
+/// A torus grid of u x v vertices and 2uv triangles, written in every readable layout the
+/// parallel reader handles (several of its 1 MiB chunks each).
+std::vector<std::string> writeTorusFiles(const fs::path& dir, int u, int v)
+{
+    std::vector<Vec3d> pts;
+    for (int i = 0; i < u; ++i) {
+        for (int j = 0; j < v; ++j) {
+            const double a = 2 * M_PI * i / u, b = 2 * M_PI * j / v;
+            pts.emplace_back((1 + 0.35 * std::cos(b)) * std::cos(a), (1 + 0.35 * std::cos(b)) * std::sin(a),
+                             0.35 * std::sin(b));
+        }
+    }
+    std::vector<std::array<int, 3>> tris;
+    for (int i = 0; i < u; ++i) {
+        for (int j = 0; j < v; ++j) {
+            const int a = i * v + j, b = ((i + 1) % u) * v + j, c = ((i + 1) % u) * v + (j + 1) % v,
+                      d = i * v + (j + 1) % v;
+            tris.push_back({a, b, c});
+            tris.push_back({a, c, d});
+        }
+    }
+    char buf[256];
+    std::string obj, plyA, stlA = "solid t\n";
+    std::vector<std::string> text(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i) {
+        std::snprintf(buf, sizeof(buf), "%.9g %.9g %.9g", pts[i][0], pts[i][1], pts[i][2]);
+        text[i] = buf;
+        obj += "v " + text[i] + "\n";
+    }
+    plyA = "ply\nformat ascii 1.0\nelement vertex " + std::to_string(pts.size()) +
+           "\nproperty double x\nproperty double y\nproperty double z\nelement face " +
+           std::to_string(tris.size()) + "\nproperty list uchar int vertex_indices\nend_header\n";
+    for (const std::string& t : text) plyA += t + "\n";
+    std::vector<std::vector<int32_t>> faces;
+    std::vector<std::array<float, 9>> facets;
+    for (const auto& t : tris) {
+        obj += "f " + std::to_string(t[0] + 1) + "/" + std::to_string(t[0] + 1) + " " + std::to_string(t[1] + 1) +
+               " " + std::to_string(t[2] + 1) + "\n";
+        plyA += "3 " + std::to_string(t[0]) + " " + std::to_string(t[1]) + " " + std::to_string(t[2]) + "\n";
+        faces.push_back({t[0], t[1], t[2]});
+        std::array<float, 9> f;
+        stlA += " facet normal 0 0 0\n  outer loop\n";
+        for (int c = 0; c < 3; ++c) {
+            for (int k = 0; k < 3; ++k) f[size_t(3 * c + k)] = float(pts[size_t(t[size_t(c)])][k]);
+            stlA += "   vertex " + text[size_t(t[size_t(c)])] + "\n";
+        }
+        stlA += "  endloop\n endfacet\n";
+        facets.push_back(f);
+    }
+    stlA += "endsolid t\n";
+    return {writeFile(dir, "t.obj", obj), writeFile(dir, "ta.ply", plyA), writeFile(dir, "tb.ply", binaryPly(pts, faces)),
+            writeFile(dir, "ta.stl", stlA), writeFile(dir, "tb.stl", binaryStl(facets))};
+}
+
+void expectSameMesh(const TriangleMesh& a, const TriangleMesh& b)
+{
+    ASSERT_EQ(a.points.size(), b.points.size());
+    ASSERT_EQ(a.triangles.size(), b.triangles.size());
+    for (size_t i = 0; i < a.points.size(); ++i) {
+        ASSERT_TRUE(a.points[i] == b.points[i]) << "vertex " << i;
+    }
+    for (size_t i = 0; i < a.triangles.size(); ++i) {
+        ASSERT_TRUE(a.triangles[i] == b.triangles[i]) << "triangle " << i;
+    }
+}
+
+} // namespace
+
+TEST(MeshIO, ParallelReadingDoesNotDependOnTheThreadCount)
+{
+    const fs::path dir = scratchDir("meshio_parallel");
+    const std::vector<std::string> files = writeTorusFiles(dir, 120, 250); // 30000 vertices, 60000 triangles
+    for (const std::string& path : files) {
+        SCOPED_TRACE(path);
+        MeshReadInfo info1, infoN;
+        TriangleMesh one, many;
+        {
+            tbb::global_control gc(tbb::global_control::max_allowed_parallelism, 1);
+            one = readMesh(path, info1);
+        }
+        {
+            tbb::global_control gc(tbb::global_control::max_allowed_parallelism, 8);
+            many = readMesh(path, infoN);
+        }
+        expectSameMesh(one, many);
+        EXPECT_EQ(one.points.size(), 30000u);
+        EXPECT_EQ(one.triangles.size(), 60000u);
+        EXPECT_EQ(info1.fileFaces, infoN.fileFaces);
+        EXPECT_EQ(info1.doublePrecision, infoN.doublePrecision);
+        EXPECT_EQ(info1.doublePrecision, path.find(".stl") == std::string::npos);
+    }
+    // The sequential path (a trailing comment on a face line sends an OBJ there) reads the same.
+    std::ifstream in(files[0], std::ios::binary);
+    std::string obj((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const size_t f = obj.find("\nf ");
+    obj.insert(obj.find('\n', f + 1), " # comment");
+    const std::string slow = writeFile(dir, "slow.obj", obj);
+    MeshReadInfo infoSlow, infoFast;
+    const TriangleMesh a = readMesh(slow, infoSlow);
+    const TriangleMesh b = readMesh(files[0], infoFast);
+    expectSameMesh(a, b);
+    EXPECT_EQ(infoSlow.fileFaces, infoFast.fileFaces);
+    EXPECT_EQ(infoSlow.doublePrecision, infoFast.doublePrecision);
 }

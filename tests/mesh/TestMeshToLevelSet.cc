@@ -182,7 +182,8 @@ TEST(MeshToLevelSet, IdenticalForAnyThreadCount)
         ASSERT_EQ(acc.getValue(it.getCoord()), *it) << it.getCoord();
     }
     EXPECT_EQ(s1.distanceEvaluations, s2.distanceEvaluations);
-    EXPECT_EQ(s1.boundaryCells, s2.boundaryCells);
+    EXPECT_EQ(s1.candidateLeaves, s2.candidateLeaves);
+    EXPECT_EQ(s1.nodeTests, s2.nodeTests);
 }
 
 TEST(MeshToLevelSet, StatisticsAreConsistent)
@@ -191,10 +192,12 @@ TEST(MeshToLevelSet, StatisticsAreConsistent)
     MeshToLevelSetOptions opt;
     opt.voxelCount = 120;
     auto grid = meshToLevelSet(makeTorusKnot(), opt, &st);
-    EXPECT_GT(st.boundaryCells, 0u);
-    EXPECT_EQ(st.caseCounts[0] + st.caseCounts[1] + st.caseCounts[2] + st.caseCounts[3], st.microtriangles);
-    EXPECT_GE(st.triangleListEntries, st.boundaryCells);
-    EXPECT_GT(st.localCells, st.boundaryCells);
+    EXPECT_GT(st.clusters, 0u);
+    EXPECT_EQ(st.hierarchyNodes, 2 * st.clusters - 1);
+    EXPECT_GE(st.clusters * 8, st.triangles);
+    EXPECT_GE(st.candidateVoxels, st.candidateLeaves);
+    EXPECT_LE(st.candidateVoxels, st.candidateLeaves * 512);
+    EXPECT_GE(st.boundTests, st.distanceEvaluations);
     EXPECT_GE(st.candidateVoxels, st.activeVoxels);
     EXPECT_EQ(st.activeVoxels, grid->activeVoxelCount());
     EXPECT_GT(st.evaluationsPerActiveVoxel(), 0.0);
@@ -283,6 +286,139 @@ TEST(MeshToLevelSet, InterrupterStopsCleanly)
     opt.voxelCount = 100;
     opt.interrupter = &stop;
     EXPECT_THROW(meshToLevelSet(makeTorusKnot(), opt), InterruptedError);
+}
+
+// ---- shapes off the sweet spot (issue 15): each closed and consistently oriented
+
+/// A UV sphere of `around` longitudes and `bands` latitude bands, poles closed by fans: for
+/// around >> bands every triangle is a sliver (6000 × 4 in the field report).
+TriangleMesh makeSliverSphere(int around, int bands, double r)
+{
+    TriangleMesh m;
+    m.points.emplace_back(0.0, 0.0, r);
+    for (int b = 1; b < bands; ++b) {
+        const double th = M_PI * b / bands;
+        for (int a = 0; a < around; ++a) {
+            const double ph = 2.0 * M_PI * a / around;
+            m.points.emplace_back(r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph), r * std::cos(th));
+        }
+    }
+    m.points.emplace_back(0.0, 0.0, -r);
+    const uint32_t south = uint32_t(m.points.size() - 1);
+    auto ring = [&](int b, int a) { return uint32_t(1 + (b - 1) * around + ((a % around) + around) % around); };
+    for (int a = 0; a < around; ++a) m.triangles.emplace_back(0u, ring(1, a), ring(1, a + 1));
+    for (int b = 1; b + 1 < bands; ++b)
+        for (int a = 0; a < around; ++a) {
+            m.triangles.emplace_back(ring(b, a), ring(b + 1, a), ring(b + 1, a + 1));
+            m.triangles.emplace_back(ring(b, a), ring(b + 1, a + 1), ring(b, a + 1));
+        }
+    for (int a = 0; a < around; ++a) m.triangles.emplace_back(south, ring(bands - 1, a + 1), ring(bands - 1, a));
+    return m;
+}
+
+/// A double cone: `n` triangles share the apex (0, 0, h), n more the tip (0, 0, -h).
+TriangleMesh makeVertexFan(int n, double radius, double h)
+{
+    TriangleMesh m;
+    m.points.emplace_back(0.0, 0.0, h);
+    m.points.emplace_back(0.0, 0.0, -h);
+    for (int a = 0; a < n; ++a) {
+        const double ph = 2.0 * M_PI * a / n;
+        m.points.emplace_back(radius * std::cos(ph), radius * std::sin(ph), 0.0);
+    }
+    for (int a = 0; a < n; ++a) {
+        const uint32_t i = uint32_t(2 + a), j = uint32_t(2 + (a + 1) % n);
+        m.triangles.emplace_back(0u, i, j);
+        m.triangles.emplace_back(1u, j, i);
+    }
+    return m;
+}
+
+/// A long thin triangular prism along x (needles: triangles `length` long, `width` wide).
+TriangleMesh makeNeedle(double length, double width)
+{
+    TriangleMesh m;
+    const double w = width;
+    const Vec3d c[3] = {Vec3d(0.0, 0.0, 0.0), Vec3d(0.0, w, 0.0), Vec3d(0.0, 0.5 * w, 0.8 * w)};
+    for (int e = 0; e < 2; ++e)
+        for (int k = 0; k < 3; ++k) m.points.push_back(c[k] + Vec3d(e ? length : 0.0, 0.0, 0.0));
+    m.triangles = {Vec3I(0, 2, 1), Vec3I(3, 4, 5)};
+    for (uint32_t k = 0; k < 3; ++k) {
+        const uint32_t a = k, b = (k + 1) % 3;
+        m.triangles.emplace_back(a, b, b + 3);
+        m.triangles.emplace_back(a, b + 3, a + 3);
+    }
+    return m;
+}
+
+TEST(MeshToLevelSet, ShapesOffTheSweetSpotAreExact)
+{
+    for (const float band : {3.0f, 8.0f}) {
+        MeshToLevelSetOptions opt;
+        opt.exteriorWidth = band;
+        opt.interiorWidth = band;
+        {
+            // slivers: 600 longitudes × 4 bands
+            opt.voxelCount = 48;
+            expectExact(makeSliverSphere(600, 4, 1.0), opt, "sliver sphere");
+        }
+        {
+            // 1200 triangles around each of two vertices
+            opt.voxelCount = 40;
+            expectExact(makeVertexFan(1200, 1.0, 0.6), opt, "vertex fan");
+        }
+        {
+            // needles ~300 voxels long and a tenth of a voxel wide
+            opt.voxelCount = 0;
+            opt.voxelSize = 0.01;
+            expectExact(makeNeedle(3.0, 0.001), opt, "needle");
+            opt.voxelSize = 0.0;
+        }
+        {
+            // a whole mesh (5120 triangles) inside one voxel
+            opt.voxelSize = 4.0;
+            expectExact(makeIcosphere(Vec3d(0.3, 0.2, 0.1), 1.0, 4), opt, "sphere in one cell");
+            opt.voxelSize = 0.0;
+        }
+        {
+            // a stray vertex 1000 bounding-box diagonals away (a thin sliver of a bad export, apart
+            // from the sphere): the sphere falls into a few cells
+            TriangleMesh m = makeIcosphere(Vec3d(0.0), 1.0, 3);
+            const uint32_t first = uint32_t(m.points.size());
+            m.points.emplace_back(1.5, 0.0, 0.0);
+            m.points.emplace_back(1.5, 0.01, 0.0);
+            m.points.emplace_back(2000.0 * std::sqrt(12.0), 0.5, 0.5);
+            m.triangles.emplace_back(first, first + 1, first + 2);
+            opt.voxelCount = 256;
+            expectExact(m, opt, "stray vertex");
+        }
+        {
+            // the torus knot with a band as wide as the shape's tube
+            opt.voxelCount = 48;
+            expectExact(makeTorusKnot(), opt, "torus knot");
+        }
+    }
+}
+
+TEST(MeshToLevelSet, VoxelBudgetCountsTheDilatedSurface)
+{
+    // a band of 1000 voxels around a sphere of 256: ~10^10 voxels, refused before allocating
+    MeshToLevelSetOptions opt;
+    opt.voxelCount = 512;
+    opt.exteriorWidth = 1000.0f;
+    try {
+        meshToLevelSet(makeIcosphere(Vec3d(0.0), 1.0, 3), opt);
+        FAIL() << "expected ResourceLimitError";
+    } catch (const ResourceLimitError& e) {
+        EXPECT_NE(std::string(e.what()).find("leaf nodes"), std::string::npos) << e.what();
+    }
+    // the same band fits a budget that holds it
+    opt.voxelCount = 16;
+    opt.exteriorWidth = 40.0f;
+    MeshToLevelSetStats st;
+    auto grid = meshToLevelSet(makeIcosphere(Vec3d(0.0), 1.0, 3), opt, &st);
+    EXPECT_GT(grid->activeVoxelCount(), 0u);
+    EXPECT_LE(double(st.activeVoxels), double(st.candidateLeaves) * 512.0);
 }
 
 TEST(MeshToLevelSet, WatertightMeshesFromSharedDataAreExact)

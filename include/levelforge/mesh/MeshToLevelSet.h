@@ -2,13 +2,18 @@
 /// @file
 /// @brief The front door: triangle mesh → exact narrow-band signed distance FloatGrid.
 ///
-/// Algorithm: Chang, Cha, Ihm, "Computing Local Signed Distance Fields for Large Polygonal
-/// Models", CGF 2008, in sparse VDB trees:
-///   1. microtriangle voxelization (§3.1, MicrotriangleVoxelizer.h) finds every boundary cell;
-///   2. two-pass triangle lists per boundary cell (§3.2, TriangleListTree.h);
-///   3. layered, culled search of nearby boundary cells for every band voxel (§4.1, generalised
-///      from the paper's 1-voxel "local cells" to any band width; src/mesh/MeshToLevelSet.cc);
-///   4. sign from the angle-weighted pseudonormal of the closest feature (§4.2, PseudoNormals.h).
+/// Algorithm: after Chang, Cha, Ihm, "Computing Local Signed Distance Fields for Large Polygonal
+/// Models", CGF 2008, in sparse VDB trees, with a hierarchy in place of the paper's cell lists
+/// (docs/algorithm.md):
+///   1. a closest-triangle hierarchy (median splits, clusters of 8 triangles with
+///      single-precision distance kernels; src/mesh/TriangleHierarchy.h);
+///   2. candidate output leaves: every leaf within the band limit of a triangle, found by
+///      rasterizing hierarchy boxes and, for large triangles, recursive triangle–box tests; their
+///      count is the voxel budget checked against maxVoxels before anything is allocated;
+///   3. per voxel, §4.1's culling on the hierarchy: the previous voxel's triangle bounds the
+///      search, boxes and single-precision distances prune, survivors are evaluated exactly;
+///   4. sign from the angle-weighted pseudonormal of the closest feature (§4.2), computed on
+///      demand with PseudoNormals' arithmetic (src/mesh/LazyPseudoNormals.h).
 ///
 /// What is exact: every active voxel holds the Euclidean distance (computed in double precision,
 /// stored as float) to the closest triangle, signed by the pseudonormal rule. That rule gives the
@@ -43,24 +48,36 @@ struct MeshToLevelSetOptions : GridSpec
 {
 };
 
-/// @brief Counters in the spirit of the paper's Tables 1–3, filled by meshToLevelSet().
+/// @brief Counters of meshToLevelSet(): the hierarchy, the candidate leaves and the search.
 struct MeshToLevelSetStats
 {
     double voxelSize = 0.0;               ///< world units
     uint64_t triangles = 0;               ///< triangles used (degenerate ones skipped)
     uint64_t skippedDegenerate = 0;       ///< zero-area triangles left out
-    uint64_t microtriangles = 0;          ///< Table 2 "M-tri"
-    std::array<uint64_t, 4> caseCounts{}; ///< microtriangles with I = 3, 2, 1, 0 (cases 1..4)
-    uint64_t boundaryCells = 0;           ///< Table 1 "B-cell"
-    uint64_t triangleListEntries = 0;     ///< total length of all triangle lists
-    uint64_t localCells = 0;              ///< boundary cells + their 6-neighbours (Table 3 "L-cell")
-    uint64_t candidateVoxels = 0;         ///< voxels searched (a boundary cell lies within the band limit)
+    uint64_t hierarchyNodes = 0;          ///< nodes of the closest-triangle hierarchy
+    uint64_t clusters = 0;                ///< its leaves (clusters of up to 8 triangles)
+    uint64_t candidateLeaves = 0;         ///< output leaves searched (within the band limit of a node box)
+    uint64_t candidateVoxels = 0;         ///< voxels searched (512 per candidate leaf with anything in reach)
     uint64_t activeVoxels = 0;            ///< voxels in the output band
-    uint64_t distanceEvaluations = 0;     ///< exact point–triangle distance evaluations
-    uint64_t boundTests = 0;              ///< cheap lower-bound tests that avoided an evaluation
-    /// Wall-clock seconds: set-up + pseudonormals + voxelization pass 1; numbering + list pass 2
-    /// + sorting; distances; tree assembly and flood fill.
-    double secondsVoxelize = 0, secondsLists = 0, secondsDistance = 0, secondsFinish = 0;
+    uint64_t distanceEvaluations = 0;     ///< exact (double-precision) point–triangle distance evaluations
+    uint64_t boundTests = 0;              ///< single-precision triangle lower bounds computed
+    uint64_t nodeTests = 0;               ///< box distances of hierarchy nodes computed
+    /// Wall-clock seconds: set-up, pseudonormals and the hierarchy; candidate leaves; distances;
+    /// tree assembly and flood fill.
+    double secondsHierarchy = 0, secondsCandidates = 0, secondsDistance = 0, secondsFinish = 0;
+
+    /// @name Counters of the 0.1 road (microtriangle voxelization and per-cell triangle lists)
+    /// Kept for source compatibility; the hierarchy road leaves them 0. secondsVoxelize and
+    /// secondsLists repeat secondsHierarchy and secondsCandidates. Removed in 0.3.
+    /// @{
+    uint64_t microtriangles = 0;
+    std::array<uint64_t, 4> caseCounts{};
+    uint64_t boundaryCells = 0;
+    uint64_t triangleListEntries = 0;
+    uint64_t localCells = 0;
+    double secondsVoxelize = 0, secondsLists = 0;
+    /// @}
+
     /// @brief Exact distance evaluations per output voxel (the cost of the culled search).
     /// @return distanceEvaluations / activeVoxels, or 0 when there are no active voxels
     double evaluationsPerActiveVoxel() const

@@ -1,0 +1,224 @@
+// SPDX-License-Identifier: Apache-2.0
+// The closest-triangle hierarchy of the exact band. See TriangleHierarchy.h.
+#include "mesh/TriangleHierarchy.h"
+
+#include "detail/ProgressCheck.h"
+#include "mesh/LazyPseudoNormals.h"
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace levelforge::mesh_internal {
+
+uint32_t clusterBounds(const TriangleCluster& c, float qx, float qy, float qz, float bm2, float* lb2)
+{
+    uint32_t mask = 0;
+#if defined(__SSE2__)
+    const __m128 Q[3] = {_mm_set1_ps(qx), _mm_set1_ps(qy), _mm_set1_ps(qz)};
+    const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f), B = _mm_set1_ps(bm2);
+    for (int i = 0; i < int(kClusterSize); i += 4) {
+        auto row = [&](int f) { return _mm_load_ps(c.F[f] + i); };
+        const __m128 n[3] = {row(0), row(1), row(2)};
+        const __m128 pd = _mm_sub_ps(
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(n[0], Q[0]), _mm_mul_ps(n[1], Q[1])), _mm_mul_ps(n[2], Q[2])), row(3));
+        __m128 outside = zero; // all bits set where q projects outside an edge
+        __m128 seg = _mm_set1_ps(3.0e38f);
+        for (int k = 0; k < 3; ++k) {
+            const int a = 4 + 3 * k, b = 4 + 3 * ((k + 1) % 3);
+            const __m128 e[3] = {_mm_sub_ps(row(b), row(a)), _mm_sub_ps(row(b + 1), row(a + 1)), _mm_sub_ps(row(b + 2), row(a + 2))};
+            const __m128 d[3] = {_mm_sub_ps(Q[0], row(a)), _mm_sub_ps(Q[1], row(a + 1)), _mm_sub_ps(Q[2], row(a + 2))};
+            // side of the edge line: (e × n) · d > 0 is outside (counter-clockwise corners)
+            const __m128 mx = _mm_sub_ps(_mm_mul_ps(e[1], n[2]), _mm_mul_ps(e[2], n[1]));
+            const __m128 my = _mm_sub_ps(_mm_mul_ps(e[2], n[0]), _mm_mul_ps(e[0], n[2]));
+            const __m128 mz = _mm_sub_ps(_mm_mul_ps(e[0], n[1]), _mm_mul_ps(e[1], n[0]));
+            const __m128 side = _mm_add_ps(_mm_add_ps(_mm_mul_ps(mx, d[0]), _mm_mul_ps(my, d[1])), _mm_mul_ps(mz, d[2]));
+            outside = _mm_or_ps(outside, _mm_cmpgt_ps(side, zero));
+            __m128 t = _mm_mul_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(d[0], e[0]), _mm_mul_ps(d[1], e[1])), _mm_mul_ps(d[2], e[2])), row(13 + k));
+            t = _mm_min_ps(_mm_max_ps(t, zero), one);
+            const __m128 rx = _mm_sub_ps(d[0], _mm_mul_ps(t, e[0])), ry = _mm_sub_ps(d[1], _mm_mul_ps(t, e[1])),
+                         rz = _mm_sub_ps(d[2], _mm_mul_ps(t, e[2]));
+            seg = _mm_min_ps(seg, _mm_add_ps(_mm_add_ps(_mm_mul_ps(rx, rx), _mm_mul_ps(ry, ry)), _mm_mul_ps(rz, rz)));
+        }
+        const __m128 l = _mm_or_ps(_mm_andnot_ps(outside, _mm_mul_ps(pd, pd)), _mm_and_ps(outside, seg));
+        _mm_storeu_ps(lb2 + i, l);
+        mask |= uint32_t(_mm_movemask_ps(_mm_cmplt_ps(l, B))) << i;
+    }
+#else
+    const float q[3] = {qx, qy, qz};
+    for (uint32_t i = 0; i < kClusterSize; ++i) {
+        const float n[3] = {c.F[0][i], c.F[1][i], c.F[2][i]};
+        const float pd = n[0] * qx + n[1] * qy + n[2] * qz - c.F[3][i];
+        bool outside = false;
+        float seg = 3.0e38f;
+        for (int k = 0; k < 3; ++k) {
+            const int a = 4 + 3 * k, b = 4 + 3 * ((k + 1) % 3);
+            float e[3], d[3];
+            for (int j = 0; j < 3; ++j) { e[j] = c.F[b + j][i] - c.F[a + j][i]; d[j] = q[j] - c.F[a + j][i]; }
+            const float side = (e[1] * n[2] - e[2] * n[1]) * d[0] + (e[2] * n[0] - e[0] * n[2]) * d[1] + (e[0] * n[1] - e[1] * n[0]) * d[2];
+            if (side > 0.0f) outside = true;
+            const float t = std::min(std::max((d[0] * e[0] + d[1] * e[1] + d[2] * e[2]) * c.F[13 + k][i], 0.0f), 1.0f);
+            float r2 = 0.0f;
+            for (int j = 0; j < 3; ++j) { const float r = d[j] - t * e[j]; r2 += r * r; }
+            seg = std::min(seg, r2);
+        }
+        lb2[i] = outside ? seg : pd * pd;
+        if (lb2[i] < bm2) mask |= 1u << i;
+    }
+#endif
+    return mask;
+}
+
+namespace {
+
+struct Item
+{
+    float c[3]; // centroid, cell space
+    uint32_t t; // triangle index
+};
+
+/// Orders the items of [b, e) so that the median splits of the hierarchy (mid = b + n/2, longest
+/// axis of the centroid box, ties by triangle id) leave every subtree's triangles contiguous.
+void partition(Item* items, size_t b, size_t e, int depth)
+{
+    const size_t n = e - b;
+    if (n <= kClusterSize) return;
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; ++k) { lo[k] = std::numeric_limits<float>::max(); hi[k] = -lo[k]; }
+    for (size_t i = b; i < e; ++i)
+        for (int k = 0; k < 3; ++k) { lo[k] = std::min(lo[k], items[i].c[k]); hi[k] = std::max(hi[k], items[i].c[k]); }
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+        if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
+    const size_t mid = b + n / 2;
+    std::nth_element(items + b, items + mid, items + e, [axis](const Item& x, const Item& y) {
+        return x.c[axis] < y.c[axis] || (x.c[axis] == y.c[axis] && x.t < y.t);
+    });
+    if (n > 16384 && depth < 24) {
+        tbb::task_group g;
+        g.run([=] { partition(items, b, mid, depth + 1); });
+        partition(items, mid, e, depth + 1);
+        g.wait();
+    } else {
+        partition(items, b, mid, depth + 1);
+        partition(items, mid, e, depth + 1);
+    }
+}
+
+} // namespace
+
+TriangleHierarchy::TriangleHierarchy(const TriangleMesh& mesh, const std::vector<Vec3d>& cellPts,
+                                     const std::vector<uint32_t>& use, openvdb::util::NullInterrupter* interrupter)
+{
+    const std::vector<Vec3I>& triangles = mesh.triangles;
+    if (use.empty()) return;
+    std::vector<Item> items(use.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, use.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const Vec3I& tri = triangles[use[i]];
+            const Vec3d c = (cellPts[tri[0]] + cellPts[tri[1]] + cellPts[tri[2]]) * (1.0 / 3.0);
+            items[i] = Item{{float(c[0]), float(c[1]), float(c[2])}, use[i]};
+        }
+    });
+    partition(items.data(), 0, items.size(), 0);
+    progress_internal::check(interrupter);
+
+    // The tree's shape depends only on the count: pre-order nodes, leaves numbered in order.
+    struct Range { size_t b, e; };
+    std::vector<Range> clusterRange;
+    mNodes.reserve(2 * (use.size() / kClusterSize + 1));
+    clusterRange.reserve(use.size() / (kClusterSize / 2) + 1);
+    auto make = [&](auto&& self, size_t b, size_t e) -> uint32_t {
+        const uint32_t me = uint32_t(mNodes.size());
+        mNodes.emplace_back();
+        mNodes[me].triangles = uint32_t(e - b);
+        if (e - b <= kClusterSize) {
+            mNodes[me].left = uint32_t(clusterRange.size());
+            mNodes[me].right = HierarchyNode::kLeaf;
+            clusterRange.push_back({b, e});
+            return me;
+        }
+        const size_t mid = b + (e - b) / 2;
+        const uint32_t l = self(self, b, mid);
+        const uint32_t r = self(self, mid, e);
+        mNodes[me].left = l;
+        mNodes[me].right = r;
+        return me;
+    };
+    make(make, 0, items.size());
+
+    mClusters.resize(clusterRange.size());
+    std::vector<uint32_t> leafNode(clusterRange.size());
+    for (uint32_t i = 0; i < mNodes.size(); ++i)
+        if (mNodes[i].isLeaf()) leafNode[mNodes[i].left] = i;
+    std::vector<double> radius(clusterRange.size(), 0.0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, clusterRange.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t ci = r.begin(); ci != r.end(); ++ci) {
+            TriangleCluster& c = mClusters[ci];
+            HierarchyNode& node = mNodes[leafNode[ci]];
+            const Range rg = clusterRange[ci];
+            Vec3d lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+            for (size_t i = rg.b; i < rg.e; ++i) {
+                const Vec3I& tri = triangles[items[i].t];
+                for (int v = 0; v < 3; ++v)
+                    for (int k = 0; k < 3; ++k) {
+                        lo[k] = std::min(lo[k], cellPts[tri[v]][k]);
+                        hi[k] = std::max(hi[k], cellPts[tri[v]][k]);
+                    }
+            }
+            for (int k = 0; k < 3; ++k) { node.lo[k] = lo[k]; node.hi[k] = hi[k]; }
+            c.origin = (lo + hi) * 0.5;
+            radius[ci] = ((hi - lo) * 0.5).length();
+            c.count = uint32_t(rg.e - rg.b);
+            for (uint32_t lane = 0; lane < kClusterSize; ++lane) {
+                if (lane >= c.count) {
+                    c.ids[lane] = kNoTriangle;
+                    for (int f = 0; f < kClusterRows; ++f) c.F[f][lane] = 0.0f;
+                    c.F[3][lane] = 1e30f; // plane distance 1e30: never survives
+                    for (int f = 4; f < 13; ++f) c.F[f][lane] = 1e30f; // a far point: edge distances overflow to inf
+                    continue;
+                }
+                const uint32_t t = items[rg.b + lane].t;
+                c.ids[lane] = t;
+                const Vec3I& tri = triangles[t];
+                const Vec3d n = faceNormalOf(mesh, t);
+                const Vec3d v[3] = {cellPts[tri[0]] - c.origin, cellPts[tri[1]] - c.origin, cellPts[tri[2]] - c.origin};
+                c.F[0][lane] = float(n[0]); c.F[1][lane] = float(n[1]); c.F[2][lane] = float(n[2]);
+                c.F[3][lane] = float(n.dot(v[0]));
+                // corners and inverse squared edge lengths, from the rounded corners so that the
+                // segments are those the single-precision arithmetic sees
+                float fv[3][3];
+                for (int k = 0; k < 3; ++k)
+                    for (int j = 0; j < 3; ++j) { fv[k][j] = float(v[k][j]); c.F[4 + 3 * k + j][lane] = fv[k][j]; }
+                for (int k = 0; k < 3; ++k) {
+                    double len2 = 0.0;
+                    for (int j = 0; j < 3; ++j) {
+                        const double d = double(fv[(k + 1) % 3][j]) - double(fv[k][j]);
+                        len2 += d * d;
+                    }
+                    c.F[13 + k][lane] = len2 > 0.0 ? float(1.0 / len2) : 0.0f;
+                }
+            }
+        }
+    });
+    for (double r : radius) mMaxRadius = std::max(mMaxRadius, r);
+    // Inner boxes: children come after their parent in pre-order.
+    for (size_t i = mNodes.size(); i-- > 0;) {
+        HierarchyNode& n = mNodes[i];
+        if (n.isLeaf()) continue;
+        const HierarchyNode& a = mNodes[n.left];
+        const HierarchyNode& b = mNodes[n.right];
+        for (int k = 0; k < 3; ++k) {
+            n.lo[k] = std::min(a.lo[k], b.lo[k]);
+            n.hi[k] = std::max(a.hi[k], b.hi[k]);
+        }
+    }
+}
+
+} // namespace levelforge::mesh_internal

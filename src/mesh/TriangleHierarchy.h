@@ -1,0 +1,117 @@
+// SPDX-License-Identifier: Apache-2.0
+/// @file
+/// @brief The closest-triangle hierarchy of the exact band (private to mesh/): a binary tree of
+///        boxes over the mesh's triangles, built once per conversion, whose leaves are
+///        *clusters* of up to 8 triangles stored with their lower-bound planes in
+///        single-precision structure-of-arrays form, relative to the cluster's centre.
+///
+/// Why: the paper's per-cell triangle lists (Chang et al. 2008 §3.2) make the cost of a voxel
+/// grow with the number of triangles near it — coarse voxels over dense meshes, a stray vertex
+/// that squeezes the whole mesh into a few cells, or a wide band gather thousands of triangles
+/// per voxel. The hierarchy makes it logarithmic: a voxel visits the boxes near it,
+/// nearest child first, and only the clusters whose box is closer than its best distance so far.
+///
+/// Exactness: nothing here decides a distance. Boxes are built from the double-precision
+/// cell-space vertices, so a box distance never exceeds the distance to any triangle inside;
+/// a cluster's bounds are lower bounds up to single-precision rounding, which the caller covers
+/// with its margin (margin()). Exact distances are always evaluated in double precision.
+///
+/// Construction is deterministic (median splits on the longest axis of the centroid box, ties
+/// broken by triangle id; the tree shape depends only on the triangle count), parallel over
+/// subtrees with TBB, so the tree is identical for any thread count.
+#pragma once
+
+#include <levelforge/core/TriangleMesh.h>
+
+#include <openvdb/util/NullInterrupter.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace levelforge::mesh_internal {
+
+constexpr uint32_t kNoTriangle = 0xffffffffu;
+constexpr uint32_t kClusterSize = 8;
+
+/// Up to 8 triangles, in single precision relative to `origin`, per lane i: F[0..3] the
+/// triangle's plane (unit normal, offset), F[4..12] its corners (x0 y0 z0 x1 ...), F[13..15]
+/// 1/|edge k|² (0 for a zero-length edge). clusterBounds() turns them into the point–triangle
+/// distance evaluated in single precision: the plane distance where the point projects inside
+/// the three edges, the nearest edge segment otherwise. Unused lanes have F[3] = 1e30 and far
+/// corners (never survive).
+constexpr int kClusterRows = 16;
+struct alignas(16) TriangleCluster
+{
+    float F[kClusterRows][kClusterSize];
+    Vec3d origin;                  ///< centre of the cluster's box, cell space
+    uint32_t ids[kClusterSize];    ///< triangle indices (kNoTriangle in unused lanes)
+    uint32_t count;                ///< triangles in use
+};
+
+/// A node of the hierarchy: its box (cell space, double) and either two children or a cluster.
+struct HierarchyNode
+{
+    double lo[3], hi[3];
+    uint32_t left;      ///< inner: left child; leaf: cluster index
+    uint32_t right;     ///< inner: right child; leaf: kLeaf
+    uint32_t triangles; ///< triangles in the subtree
+    static constexpr uint32_t kLeaf = 0xffffffffu;
+    bool isLeaf() const { return right == kLeaf; }
+};
+
+/// Squared distance from p to the box of n (0 inside).
+inline double boxDistanceSqr(const HierarchyNode& n, const Vec3d& p)
+{
+    double d2 = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        const double e = p[k] < n.lo[k] ? n.lo[k] - p[k] : (p[k] > n.hi[k] ? p[k] - n.hi[k] : 0.0);
+        d2 += e * e;
+    }
+    return d2;
+}
+
+/// Squared distance between the box of n and the box [lo, hi] (0 when they overlap).
+inline double boxBoxDistanceSqr(const HierarchyNode& n, const Vec3d& lo, const Vec3d& hi)
+{
+    double d2 = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        const double e = hi[k] < n.lo[k] ? n.lo[k] - hi[k] : (lo[k] > n.hi[k] ? lo[k] - n.hi[k] : 0.0);
+        d2 += e * e;
+    }
+    return d2;
+}
+
+/// Squared distances, in single precision, from q (relative to the cluster origin) to the 8 lanes
+/// of a cluster: lb2[i], and the mask of lanes with lb2 < bm2 as the return value. The rounding
+/// error of each distance is a few ulps of (|q| + the cluster radius), which the caller's margin
+/// covers, so lb2 serves as a lower bound. SSE2 on x86-64, scalar elsewhere.
+uint32_t clusterBounds(const TriangleCluster& c, float qx, float qy, float qz, float bm2, float* lb2);
+
+class TriangleHierarchy
+{
+public:
+    /// Builds the hierarchy over the triangles `use` (indices into mesh.triangles,
+    /// non-degenerate) with cell-space vertices `cellPts`; the bound planes take the unit face
+    /// normals of the world-space mesh (faceNormalOf(), as the pseudonormals do). Polls the
+    /// interrupter after the partition (throws InterruptedError).
+    TriangleHierarchy(const TriangleMesh& mesh, const std::vector<Vec3d>& cellPts, const std::vector<uint32_t>& use,
+                      openvdb::util::NullInterrupter* interrupter = nullptr);
+
+    const std::vector<HierarchyNode>& nodes() const { return mNodes; }
+    const std::vector<TriangleCluster>& clusters() const { return mClusters; }
+    /// The largest distance from a cluster's origin to a corner of its box (cell units): bounds
+    /// the magnitude of the coordinates the single-precision planes are evaluated at.
+    double maxClusterRadius() const { return mMaxRadius; }
+    /// Bytes held (nodes and clusters).
+    size_t memoryBytes() const
+    {
+        return mNodes.capacity() * sizeof(HierarchyNode) + mClusters.capacity() * sizeof(TriangleCluster);
+    }
+
+private:
+    std::vector<HierarchyNode> mNodes;       // pre-order; node 0 is the root
+    std::vector<TriangleCluster> mClusters;  // in leaf order
+    double mMaxRadius = 0.0;
+};
+
+} // namespace levelforge::mesh_internal
