@@ -26,14 +26,64 @@ inline std::string sharedDataDir()
     return {};
 }
 
-/// Path of a file under ../shared/data, or skips the current test with a message.
+/// True when the environment sets LEVELFORGE_REQUIRE_SHARED_DATA=1 (a CI that provides
+/// ../shared/data): a test that needs the shared data and does not find it then FAILS instead of
+/// skipping, so that missing data cannot pass unnoticed.
+inline bool sharedDataRequired()
+{
+    const char* v = std::getenv("LEVELFORGE_REQUIRE_SHARED_DATA");
+    return v && std::string(v) == "1";
+}
+
+/// Leaves the current test because shared data is missing: a visible skip, or a failure when
+/// LEVELFORGE_REQUIRE_SHARED_DATA=1. `message` is streamed (`"x " << y` works).
+#define LF_SHARED_DATA_MISSING(message)                                                           \
+    do {                                                                                          \
+        std::ostringstream lfMsg_;                                                                \
+        lfMsg_ << message;                                                                        \
+        if (::levelforge_test::sharedDataRequired()) {                                            \
+            FAIL() << lfMsg_.str() << " (LEVELFORGE_REQUIRE_SHARED_DATA=1: shared data required)"; \
+        } else {                                                                                  \
+            GTEST_SKIP() << lfMsg_.str() << "; skipping";                                         \
+        }                                                                                         \
+    } while (0)
+
+/// Skips the current test (fails it with LEVELFORGE_REQUIRE_SHARED_DATA=1) when ../shared/data
+/// is absent. Use it first in every test that reads ../shared/data.
+#define LF_SKIP_WITHOUT_SHARED_DATA()                                                             \
+    do {                                                                                          \
+        if (::levelforge_test::sharedDataDir().empty())                                           \
+            LF_SHARED_DATA_MISSING("../shared/data not present (or $LEVELFORGE_SHARED_DATA)");    \
+    } while (0)
+
+/// Path of a file under ../shared/data, or skips the current test with a message (fails it
+/// with LEVELFORGE_REQUIRE_SHARED_DATA=1).
 #define LEVELFORGE_SHARED_FILE_OR_SKIP(var, relative)                                             \
     std::string var;                                                                              \
     do {                                                                                          \
-        const std::string dir_ = ::levelforge_test::sharedDataDir();                              \
-        if (dir_.empty()) GTEST_SKIP() << "../shared/data not present; skipping " << relative;    \
-        var = dir_ + "/" + relative;                                                              \
-        if (!std::filesystem::exists(var)) GTEST_SKIP() << var << " not present; skipping";       \
+        LF_SKIP_WITHOUT_SHARED_DATA();                                                            \
+        var = ::levelforge_test::sharedDataDir() + "/" + relative;                                \
+        if (!std::filesystem::exists(var)) LF_SHARED_DATA_MISSING(var << " not present");         \
+    } while (0)
+
+/// Whether this CPU runs AVX2 code (x86 with GCC/Clang; false elsewhere).
+inline bool cpuHasAvx2()
+{
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2");
+#else
+    return false;
+#endif
+}
+
+/// Skips, visibly, a test comparing an AVX2 build with the baseline on a CPU without AVX2 (there
+/// the comparison would be the baseline against itself).
+#define LF_SKIP_WITHOUT_AVX2()                                                                    \
+    do {                                                                                          \
+        if (!::levelforge_test::cpuHasAvx2())                                                     \
+            GTEST_SKIP() << "this CPU has no AVX2: the AVX2 build cannot run, and comparing the "  \
+                            "baseline with itself would prove nothing";                           \
     } while (0)
 
 /// A fresh scratch directory for one test.

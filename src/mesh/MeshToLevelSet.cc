@@ -128,7 +128,7 @@ inline void visitCluster(const Context& ctx, const TriangleCluster& c, VoxelSear
         mask &= ~(1u << pick);
         if (!(lb2[pick] < v.bm2f)) break;
         const uint32_t t = c.ids[pick];
-        if (t == v.seed) continue;
+        if (t == v.seed || t == v.bestT) continue; // evaluated already (a seed, or a piece of a split triangle)
         evaluate(ctx, v, t, s);
     }
 }
@@ -356,18 +356,36 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
             else searchSubtree(ctx, ni, double(d2[j]), v, s);
         }
     };
-    for (int vx = 0; vx < 8; ++vx)
-        for (int vy = 0; vy < 8; ++vy)
-            for (int vz = 0; vz < 8; ++vz) {
-                ++s.candidateVoxels;
-                v.p = Vec3d(origin.x() + vx + 0.5, origin.y() + vy + 0.5, origin.z() + vz + 0.5);
-                v.best2 = ctx.limit2;
-                v.bestT = kNone;
-                v.seed = seed;
-                v.tighten(ctx.margin);
-                if (seed != kNone) evaluate(ctx, v, seed, s);
-                const size_t top = s.nLevels - 1;
-                descend(descend, top, 0, s.levels[top].count, float(vx - 3.5), float(vy - 3.5), float(vz - 3.5));
+    // Blocks of 2×2×2 voxels first, for narrow bands: a block with no triangle within
+    // limit + √3/2 of its centre holds no voxel within the limit (nothing to search, its signs
+    // come from the flood fill). Wide bands fill whole leaves; there the blocks would only cost.
+    const bool blocks = ctx.limit < 8.0;
+    const double blockReach = ctx.limit + 0.8660254037844387 + ctx.margin;
+    const size_t top = s.nLevels - 1;
+    for (int bx = 0; bx < 4; ++bx)
+        for (int by = 0; by < 4; ++by)
+            for (int bz = 0; bz < 4; ++bz) {
+                if (blocks) {
+                    v.p = Vec3d(origin.x() + 2 * bx + 1.0, origin.y() + 2 * by + 1.0, origin.z() + 2 * bz + 1.0);
+                    v.best2 = blockReach * blockReach;
+                    v.bestT = kNone;
+                    v.seed = seed;
+                    v.tighten(ctx.margin);
+                    if (seed != kNone) evaluate(ctx, v, seed, s);
+                    descend(descend, top, 0, s.levels[top].count, float(2 * bx - 3), float(2 * by - 3), float(2 * bz - 3));
+                    if (v.bestT == kNone) continue;
+                    seed = v.bestT;
+                }
+                for (int corner = 0; corner < 8; ++corner) {
+                    const int vx = 2 * bx + (corner >> 2), vy = 2 * by + ((corner >> 1) & 1), vz = 2 * bz + (corner & 1);
+                    ++s.candidateVoxels;
+                    v.p = Vec3d(origin.x() + vx + 0.5, origin.y() + vy + 0.5, origin.z() + vz + 0.5);
+                    v.best2 = ctx.limit2;
+                    v.bestT = kNone;
+                    v.seed = seed;
+                    v.tighten(ctx.margin);
+                    if (seed != kNone) evaluate(ctx, v, seed, s);
+                    descend(descend, top, 0, s.levels[top].count, float(vx - 3.5), float(vy - 3.5), float(vz - 3.5));
                 seed = v.bestT;
                 if (v.bestT == kNone) continue; // nothing within reach: sign left to the flood fill
                 const openvdb::Index offset = openvdb::Index((vx << 6) | (vy << 3) | vz);
@@ -382,6 +400,7 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
                     ++active;
                 } else {
                     res.sdf->setValueOff(offset, inside ? -bg : bg);
+                }
                 }
             }
     s.activeVoxels += active;
@@ -446,12 +465,16 @@ public:
             const Vec3d& a = mCtx.cellPts[tri[0]];
             const Vec3d& b = mCtx.cellPts[tri[1]];
             const Vec3d& cc = mCtx.cellPts[tri[2]];
+            // only the part of the triangle inside this cluster's box: a split triangle's other
+            // pieces are in other clusters
             Vec3d lo, hi;
+            bool empty = false;
             for (int k = 0; k < 3; ++k) {
-                lo[k] = std::min({a[k], b[k], cc[k]});
-                hi[k] = std::max({a[k], b[k], cc[k]});
+                lo[k] = std::max(std::min({a[k], b[k], cc[k]}), n.lo[k]);
+                hi[k] = std::min(std::max({a[k], b[k], cc[k]}), n.hi[k]);
+                empty = empty || lo[k] > hi[k];
             }
-            rasterizeTriangle(a, b, cc, leafRange(lo, hi), mask);
+            if (!empty) rasterizeTriangle(a, b, cc, leafRange(lo, hi), mask);
         }
     }
 

@@ -77,11 +77,63 @@ uint32_t clusterBounds(const TriangleCluster& c, float qx, float qy, float qz, f
 
 namespace {
 
+constexpr uint32_t kWhole = 0xffffffffu;
+/// Triangles longer than this (cells) are split into pieces no longer, each with its own box.
+constexpr double kSplitSize = 8.0;
+
 struct Item
 {
-    float c[3]; // centroid, cell space
-    uint32_t t; // triangle index
+    float c[3];     // centroid of the triangle or of the piece's box, cell space
+    uint32_t t;     // triangle index
+    uint32_t piece; // kWhole, or the index of the piece's box
 };
+
+struct PieceBox
+{
+    double lo[3], hi[3];
+};
+
+/// Splits the convex polygon poly[0, n) (a triangle or a piece of one) at the middle of its
+/// longest box axis until no piece's box is longer than kSplitSize; appends the pieces' boxes
+/// (widened by more than the rounding of the clipped corners).
+void splitPolygon(const Vec3d* poly, int n, std::vector<PieceBox>& out, int depth)
+{
+    double lo[3], hi[3];
+    for (int k = 0; k < 3; ++k) { lo[k] = hi[k] = poly[0][k]; }
+    for (int i = 1; i < n; ++i)
+        for (int k = 0; k < 3; ++k) { lo[k] = std::min(lo[k], poly[i][k]); hi[k] = std::max(hi[k], poly[i][k]); }
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+        if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
+    if (hi[axis] - lo[axis] <= kSplitSize || depth >= 60) {
+        PieceBox b;
+        for (int k = 0; k < 3; ++k) {
+            const double pad = 1e-9 * (1.0 + std::abs(lo[k]) + std::abs(hi[k]));
+            b.lo[k] = lo[k] - pad;
+            b.hi[k] = hi[k] + pad;
+        }
+        out.push_back(b);
+        return;
+    }
+    const double cut = 0.5 * (lo[axis] + hi[axis]);
+    Vec3d below[16], above[16];
+    int nb = 0, na = 0;
+    for (int i = 0; i < n; ++i) {
+        const Vec3d& a = poly[i];
+        const Vec3d& b = poly[(i + 1) % n];
+        const double da = a[axis] - cut, db = b[axis] - cut;
+        if (da <= 0.0 && nb < 16) below[nb++] = a;
+        if (da >= 0.0 && na < 16) above[na++] = a;
+        if ((da < 0.0 && db > 0.0) || (da > 0.0 && db < 0.0)) {
+            Vec3d x = a + (b - a) * (da / (da - db));
+            x[axis] = cut;
+            if (nb < 16) below[nb++] = x;
+            if (na < 16) above[na++] = x;
+        }
+    }
+    if (nb >= 1) splitPolygon(below, nb, out, depth + 1);
+    if (na >= 1) splitPolygon(above, na, out, depth + 1);
+}
 
 /// Orders the items of [b, e) so that the median splits of the hierarchy (mid = b + n/2, longest
 /// axis of the centroid box, ties by triangle id) leave every subtree's triangles contiguous.
@@ -98,7 +150,8 @@ void partition(Item* items, size_t b, size_t e, int depth)
         if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
     const size_t mid = b + n / 2;
     std::nth_element(items + b, items + mid, items + e, [axis](const Item& x, const Item& y) {
-        return x.c[axis] < y.c[axis] || (x.c[axis] == y.c[axis] && x.t < y.t);
+        if (x.c[axis] != y.c[axis]) return x.c[axis] < y.c[axis];
+        return x.t < y.t || (x.t == y.t && x.piece < y.piece);
     });
     if (n > 16384 && depth < 24) {
         tbb::task_group g;
@@ -118,22 +171,65 @@ TriangleHierarchy::TriangleHierarchy(const TriangleMesh& mesh, const std::vector
 {
     const std::vector<Vec3I>& triangles = mesh.triangles;
     if (use.empty()) return;
-    std::vector<Item> items(use.size());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, use.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            const Vec3I& tri = triangles[use[i]];
-            const Vec3d c = (cellPts[tri[0]] + cellPts[tri[1]] + cellPts[tri[2]]) * (1.0 / 3.0);
-            items[i] = Item{{float(c[0]), float(c[1]), float(c[2])}, use[i]};
+    // Items: whole triangles, or the pieces of triangles longer than kSplitSize (slivers,
+    // needles, CAD faces), so that no box of the hierarchy is much larger than what it holds.
+    // Chunks in triangle order keep the item order independent of the thread count.
+    const size_t chunk = 4096, nChunks = (use.size() + chunk - 1) / chunk;
+    std::vector<std::vector<Item>> chunkItems(nChunks);
+    std::vector<std::vector<PieceBox>> chunkPieces(nChunks);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nChunks, 1), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t ch = r.begin(); ch != r.end(); ++ch) {
+            auto& out = chunkItems[ch];
+            auto& pieces = chunkPieces[ch];
+            for (size_t i = ch * chunk; i < std::min(use.size(), (ch + 1) * chunk); ++i) {
+                const Vec3I& tri = triangles[use[i]];
+                const Vec3d v[3] = {cellPts[tri[0]], cellPts[tri[1]], cellPts[tri[2]]};
+                double ext = 0.0;
+                for (int k = 0; k < 3; ++k)
+                    ext = std::max(ext, std::max({v[0][k], v[1][k], v[2][k]}) - std::min({v[0][k], v[1][k], v[2][k]}));
+                if (!(ext > kSplitSize)) {
+                    const Vec3d c = (v[0] + v[1] + v[2]) * (1.0 / 3.0);
+                    out.push_back(Item{{float(c[0]), float(c[1]), float(c[2])}, use[i], kWhole});
+                    continue;
+                }
+                const size_t first = pieces.size();
+                splitPolygon(v, 3, pieces, 0);
+                for (size_t pc = first; pc < pieces.size(); ++pc) {
+                    const PieceBox& b = pieces[pc];
+                    out.push_back(Item{{float(0.5 * (b.lo[0] + b.hi[0])), float(0.5 * (b.lo[1] + b.hi[1])),
+                                        float(0.5 * (b.lo[2] + b.hi[2]))},
+                                       use[i], uint32_t(pc)}); // local index, rebased below
+                }
+            }
         }
     });
+    std::vector<Item> items;
+    std::vector<PieceBox> pieceBoxes;
+    {
+        size_t ni = 0, np = 0;
+        for (size_t ch = 0; ch < nChunks; ++ch) { ni += chunkItems[ch].size(); np += chunkPieces[ch].size(); }
+        items.reserve(ni);
+        pieceBoxes.reserve(np);
+        for (size_t ch = 0; ch < nChunks; ++ch) {
+            const uint32_t base = uint32_t(pieceBoxes.size());
+            for (Item it : chunkItems[ch]) {
+                if (it.piece != kWhole) it.piece += base;
+                items.push_back(it);
+            }
+            pieceBoxes.insert(pieceBoxes.end(), chunkPieces[ch].begin(), chunkPieces[ch].end());
+            std::vector<Item>().swap(chunkItems[ch]);
+            std::vector<PieceBox>().swap(chunkPieces[ch]);
+        }
+    }
+    mPieces = pieceBoxes.size();
     partition(items.data(), 0, items.size(), 0);
     progress_internal::check(interrupter);
 
     // The tree's shape depends only on the count: pre-order nodes, leaves numbered in order.
     struct Range { size_t b, e; };
     std::vector<Range> clusterRange;
-    mNodes.reserve(2 * (use.size() / kClusterSize + 1));
-    clusterRange.reserve(use.size() / (kClusterSize / 2) + 1);
+    mNodes.reserve(2 * (items.size() / kClusterSize + 1));
+    clusterRange.reserve(items.size() / (kClusterSize / 2) + 1);
     auto make = [&](auto&& self, size_t b, size_t e) -> uint32_t {
         const uint32_t me = uint32_t(mNodes.size());
         mNodes.emplace_back();
@@ -165,6 +261,11 @@ TriangleHierarchy::TriangleHierarchy(const TriangleMesh& mesh, const std::vector
             const Range rg = clusterRange[ci];
             Vec3d lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
             for (size_t i = rg.b; i < rg.e; ++i) {
+                if (items[i].piece != kWhole) {
+                    const PieceBox& b = pieceBoxes[items[i].piece];
+                    for (int k = 0; k < 3; ++k) { lo[k] = std::min(lo[k], b.lo[k]); hi[k] = std::max(hi[k], b.hi[k]); }
+                    continue;
+                }
                 const Vec3I& tri = triangles[items[i].t];
                 for (int v = 0; v < 3; ++v)
                     for (int k = 0; k < 3; ++k) {
@@ -174,7 +275,14 @@ TriangleHierarchy::TriangleHierarchy(const TriangleMesh& mesh, const std::vector
             }
             for (int k = 0; k < 3; ++k) { node.lo[k] = lo[k]; node.hi[k] = hi[k]; }
             c.origin = (lo + hi) * 0.5;
-            radius[ci] = ((hi - lo) * 0.5).length();
+            // the single-precision kernels see the whole triangles, whose corners may lie outside
+            // the box of their pieces: the radius that bounds their coordinates
+            double r2 = ((hi - lo) * 0.5).lengthSqr();
+            for (size_t i = rg.b; i < rg.e; ++i) {
+                const Vec3I& tri = triangles[items[i].t];
+                for (int v = 0; v < 3; ++v) r2 = std::max(r2, (cellPts[tri[v]] - c.origin).lengthSqr());
+            }
+            radius[ci] = std::sqrt(r2);
             c.count = uint32_t(rg.e - rg.b);
             for (uint32_t lane = 0; lane < kClusterSize; ++lane) {
                 if (lane >= c.count) {

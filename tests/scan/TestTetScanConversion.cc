@@ -388,9 +388,10 @@ TEST(TetScanConversion, FoldFollowsThePseudonormalRuleAndIsLocal)
 
 TEST(TetScanConversion, OpenMeshesDoNotCrashAndFollowThePseudonormalRule)
 {
+    LF_SKIP_WITHOUT_SHARED_DATA();
     const std::string dir = levelforge_test::sharedDataDir();
-    if (dir.empty() || !std::filesystem::is_directory(dir + "/meshes/open_or_broken"))
-        GTEST_SKIP() << "../shared/data/meshes/open_or_broken not present";
+    if (!std::filesystem::is_directory(dir + "/meshes/open_or_broken"))
+        LF_SHARED_DATA_MISSING(dir << "/meshes/open_or_broken not present");
     int tested = 0;
     for (const auto& entry : std::filesystem::directory_iterator(dir + "/meshes/open_or_broken")) {
         if (!isReadableMeshFile(entry.path().string())) continue;
