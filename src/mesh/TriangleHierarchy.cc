@@ -28,6 +28,13 @@ uint32_t clusterBounds(const TriangleCluster& c, float qx, float qy, float qz, f
         const __m128 n[3] = {row(0), row(1), row(2)};
         const __m128 pd = _mm_sub_ps(
             _mm_add_ps(_mm_add_ps(_mm_mul_ps(n[0], Q[0]), _mm_mul_ps(n[1], Q[1])), _mm_mul_ps(n[2], Q[2])), row(3));
+        // the plane distance alone is a lower bound: lanes it already puts beyond the search
+        // radius need no more (often all four, for clusters facing another way)
+        const __m128 pd2 = _mm_mul_ps(pd, pd);
+        if (_mm_movemask_ps(_mm_cmplt_ps(pd2, B)) == 0) {
+            _mm_storeu_ps(lb2 + i, pd2);
+            continue;
+        }
         __m128 outside = zero; // all bits set where q projects outside an edge
         __m128 seg = _mm_set1_ps(3.0e38f);
         for (int k = 0; k < 3; ++k) {
@@ -46,7 +53,7 @@ uint32_t clusterBounds(const TriangleCluster& c, float qx, float qy, float qz, f
                          rz = _mm_sub_ps(d[2], _mm_mul_ps(t, e[2]));
             seg = _mm_min_ps(seg, _mm_add_ps(_mm_add_ps(_mm_mul_ps(rx, rx), _mm_mul_ps(ry, ry)), _mm_mul_ps(rz, rz)));
         }
-        const __m128 l = _mm_or_ps(_mm_andnot_ps(outside, _mm_mul_ps(pd, pd)), _mm_and_ps(outside, seg));
+        const __m128 l = _mm_or_ps(_mm_andnot_ps(outside, pd2), _mm_and_ps(outside, seg));
         _mm_storeu_ps(lb2 + i, l);
         mask |= uint32_t(_mm_movemask_ps(_mm_cmplt_ps(l, B))) << i;
     }
