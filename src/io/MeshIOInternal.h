@@ -246,6 +246,13 @@ void prescanPly(const std::string& path, Prescan& out);
 /// Pre-scans an STL file, ASCII or binary; @a ext is the lower-case extension (MeshScanStl.cc).
 void prescanStl(const std::string& path, const std::string& ext, Prescan& out);
 
+/// PLY property types (MeshScanPly.cc), shared by the sequential and the parallel reader.
+enum class PlyType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64, Invalid };
+/// The type named by a PLY header word ("uchar", "float32", ...); Invalid for anything else.
+PlyType plyType(std::string_view s);
+/// Bytes of one value of type t (0 for Invalid).
+size_t plySize(PlyType t);
+
 } // namespace meshio_internal
 
 } // namespace levelforge

@@ -3,6 +3,7 @@
 /// @brief The parallel fast path of readMesh() (see MeshParseFast.h): mapped file, chunks split
 ///        at line boundaries, TBB over chunks, results concatenated in chunk order.
 #include "io/MeshParseFast.h"
+#include "io/MeshIOInternal.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -437,43 +438,18 @@ bool fastAsciiStl(const MappedFile& file, FastMesh& out)
 
 // ------------------------------------------------------------------------------------- PLY
 
-enum class PType { I8, U8, I16, U16, I32, U32, F32, F64, Bad };
-
-PType pType(std::string_view s)
-{
-    if (s == "char" || s == "int8") return PType::I8;
-    if (s == "uchar" || s == "uint8") return PType::U8;
-    if (s == "short" || s == "int16") return PType::I16;
-    if (s == "ushort" || s == "uint16") return PType::U16;
-    if (s == "int" || s == "int32") return PType::I32;
-    if (s == "uint" || s == "uint32") return PType::U32;
-    if (s == "float" || s == "float32") return PType::F32;
-    if (s == "double" || s == "float64") return PType::F64;
-    return PType::Bad;
-}
-
-size_t pSize(PType t)
-{
-    switch (t) {
-    case PType::I8: case PType::U8: return 1;
-    case PType::I16: case PType::U16: return 2;
-    case PType::I32: case PType::U32: case PType::F32: return 4;
-    case PType::F64: return 8;
-    case PType::Bad: break;
-    }
-    return 0;
-}
+// PLY property types: PlyType, plyType() and plySize() of MeshScanPly.cc (MeshIOInternal.h).
 
 /// Little-endian integer of type @a t at @a p (integer types only).
-inline int64_t readInt(const char* p, PType t)
+inline int64_t readInt(const char* p, PlyType t)
 {
     switch (t) {
-    case PType::I8: { int8_t v; std::memcpy(&v, p, 1); return v; }
-    case PType::U8: { uint8_t v; std::memcpy(&v, p, 1); return v; }
-    case PType::I16: { int16_t v; std::memcpy(&v, p, 2); return v; }
-    case PType::U16: { uint16_t v; std::memcpy(&v, p, 2); return v; }
-    case PType::I32: { int32_t v; std::memcpy(&v, p, 4); return v; }
-    case PType::U32: { uint32_t v; std::memcpy(&v, p, 4); return v; }
+    case PlyType::Int8: { int8_t v; std::memcpy(&v, p, 1); return v; }
+    case PlyType::UInt8: { uint8_t v; std::memcpy(&v, p, 1); return v; }
+    case PlyType::Int16: { int16_t v; std::memcpy(&v, p, 2); return v; }
+    case PlyType::UInt16: { uint16_t v; std::memcpy(&v, p, 2); return v; }
+    case PlyType::Int32: { int32_t v; std::memcpy(&v, p, 4); return v; }
+    case PlyType::UInt32: { uint32_t v; std::memcpy(&v, p, 4); return v; }
     default: break;
     }
     return -1;
@@ -485,11 +461,11 @@ struct PlyLayout
 {
     bool ascii = true;
     uint64_t nV = 0, nF = 0;
-    std::vector<PType> vprops;
+    std::vector<PlyType> vprops;
     int xyz[3] = {-1, -1, -1};
     size_t xyzOffset[3] = {0, 0, 0};
     size_t stride = 0;
-    PType countType = PType::Bad, itemType = PType::Bad;
+    PlyType countType = PlyType::Invalid, itemType = PlyType::Invalid;
     size_t body = 0; ///< offset of the first byte after the header
 };
 
@@ -525,23 +501,23 @@ bool parsePlyHeader(const MappedFile& file, PlyLayout& L)
             else if (element == 0 && t[1] == "face") { element = 1; L.nF = count; }
             else return false;
         } else if (t[0] == "property" && element == 0 && n == 3) {
-            const PType ty = pType(t[1]);
-            if (ty == PType::Bad) return false;
+            const PlyType ty = plyType(t[1]);
+            if (ty == PlyType::Invalid) return false;
             for (int k = 0; k < 3; ++k) {
                 if (t[2] == std::string_view(k == 0 ? "x" : (k == 1 ? "y" : "z"))) {
-                    if (L.xyz[k] >= 0 || (ty != PType::F32 && ty != PType::F64)) return false;
+                    if (L.xyz[k] >= 0 || (ty != PlyType::Float32 && ty != PlyType::Float64)) return false;
                     L.xyz[k] = int(L.vprops.size());
                     L.xyzOffset[k] = L.stride;
                 }
             }
             L.vprops.push_back(ty);
-            L.stride += pSize(ty);
+            L.stride += plySize(ty);
         } else if (t[0] == "property" && element == 1 && n == 5 && t[1] == "list" && !faceList &&
                    (t[4] == "vertex_indices" || t[4] == "vertex_index")) {
-            L.countType = pType(t[2]);
-            L.itemType = pType(t[3]);
-            if (L.countType == PType::Bad || L.countType == PType::F32 || L.countType == PType::F64) return false;
-            if (L.itemType != PType::I32 && L.itemType != PType::U32) return false;
+            L.countType = plyType(t[2]);
+            L.itemType = plyType(t[3]);
+            if (L.countType == PlyType::Invalid || L.countType == PlyType::Float32 || L.countType == PlyType::Float64) return false;
+            if (L.itemType != PlyType::Int32 && L.itemType != PlyType::UInt32) return false;
             faceList = true;
         } else {
             return false;
@@ -556,7 +532,7 @@ bool fastBinaryPly(const MappedFile& file, const PlyLayout& L, FastMesh& out)
 {
     const char* d = file.data() + L.body;
     const size_t avail = file.size() - L.body;
-    const size_t cs = pSize(L.countType), is = pSize(L.itemType);
+    const size_t cs = plySize(L.countType), is = plySize(L.itemType);
     if (uint64_t(L.nV) * L.stride + uint64_t(L.nF) * (cs + 3 * is) > avail) return false;
     out.points.resize(L.nV);
     std::atomic<bool> bail{false};
@@ -565,7 +541,7 @@ bool fastBinaryPly(const MappedFile& file, const PlyLayout& L, FastMesh& out)
             const char* rec = d + v * L.stride;
             for (int k = 0; k < 3; ++k) {
                 double x;
-                if (L.vprops[size_t(L.xyz[k])] == PType::F32) {
+                if (L.vprops[size_t(L.xyz[k])] == PlyType::Float32) {
                     float f;
                     std::memcpy(&f, rec + L.xyzOffset[k], 4);
                     x = f;

@@ -12,8 +12,6 @@ namespace meshio_internal {
 
 // PLY (ASCII and binary): header, then every element in order; checks vertex x/y/z and the
 // face index lists, keeps exact positions.
-enum class PlyType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64, Invalid };
-
 PlyType plyType(std::string_view s)
 {
     if (s == "char" || s == "int8") return PlyType::Int8;

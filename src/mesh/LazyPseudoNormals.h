@@ -3,9 +3,9 @@
 /// @brief Angle-weighted pseudonormals (Bærentzen & Aanæs 2005) computed on demand, for the
 ///        exact band (private to mesh/).
 ///
-/// core/PseudoNormals.h computes every face, edge and vertex normal up front: for a 1.6 M
-/// triangle mesh converted at 64³ that is ~0.8 s and ~200 MB for a band whose few thousand voxels
-/// ask for a few thousand normals. This class keeps only a vertex → triangle table (ascending
+/// core/PseudoNormals.h computes every face, edge and vertex normal up front: for the 1.6 M
+/// triangle armadillo converted at 64³ that measured 0.80 s (0.07 s with this class) and holds
+/// ~200 MB of arrays, for a band of 40 k voxels. This class keeps only a vertex → triangle table (ascending
 /// triangle order) and computes the normal of the feature a voxel asks for when it asks.
 ///
 /// Exactness: the arithmetic is PseudoNormals' own, term for term and in the same order (face
