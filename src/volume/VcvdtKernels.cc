@@ -138,13 +138,14 @@ LEVELFORGE_AI void chainGroup(float* c, const float* yzg, const int w, const int
         // the assumption that no voxel changes, each candidate coming from the previous
         // voxel's current vector (the first from the carry). If none wins, the assumption
         // holds and the chain leaves the group as it is; otherwise run the steps one by one.
-        // Same operations, so the same comparisons as the scalar steps.
+        // Same operations, so the same comparisons as the scalar steps. (__builtin_shufflevector:
+        // GCC >= 12 and clang alike.)
         const v8f X = load8(c), D = load8(c + 24), YZ = load8(yzg);
         const v8f px = v8f{} + p.x, pyz = v8f{} + p.yz;
-        const v8f cxs = xs > 0 ? __builtin_shuffle(X, px, v8i{8, 0, 1, 2, 3, 4, 5, 6})
-                               : __builtin_shuffle(X, px, v8i{1, 2, 3, 4, 5, 6, 7, 8});
-        const v8f yzs = xs > 0 ? __builtin_shuffle(YZ, pyz, v8i{8, 0, 1, 2, 3, 4, 5, 6})
-                               : __builtin_shuffle(YZ, pyz, v8i{1, 2, 3, 4, 5, 6, 7, 8});
+        const v8f cxs = xs > 0 ? __builtin_shufflevector(X, px, 8, 0, 1, 2, 3, 4, 5, 6)
+                               : __builtin_shufflevector(X, px, 1, 2, 3, 4, 5, 6, 7, 8);
+        const v8f yzs = xs > 0 ? __builtin_shufflevector(YZ, pyz, 8, 0, 1, 2, 3, 4, 5, 6)
+                               : __builtin_shufflevector(YZ, pyz, 1, 2, 3, 4, 5, 6, 7, 8);
         const v8f cx = cxs + ox;
         const v8f Xs = Unit ? cx : cx * sx;
         const v8i win = (Xs * Xs + yzs) < D;
