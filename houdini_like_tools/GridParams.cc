@@ -28,6 +28,11 @@ std::vector<Param> gridParams(const GridParamSet& set)
             spec.push_back(Param::flag("world-units", "Use World Space Units",
                                    "Read the band widths in world units instead of voxels"));
     }
+    spec.push_back(Param::integer("max-voxels", "Max Voxels",
+                                  "Refuse, before allocating, work whose voxel budget (the band's voxels plus "
+                                  "working memory at 4 bytes a voxel) exceeds this; 0: no limit")
+                       .defaultValue(set.maxVoxels)
+                       .range(0.0, 9.0e18));
     spec.push_back(Param::string("grid-name", "Grid Name", "Name of the grid in the .vdb file")
                    .defaultValue(set.gridName));
     return spec;
@@ -49,6 +54,7 @@ void readGridParams(const OperatorArgs& args, GridSpec& grid)
     }
     if (spec.findParam("world-units"))
         grid.units = args.getBool("world-units") ? WidthUnits::World : WidthUnits::Voxels;
+    if (spec.findParam("max-voxels")) grid.maxVoxels = static_cast<uint64_t>(args.getInt("max-voxels"));
     if (spec.findParam("grid-name")) grid.gridName = args.getString("grid-name");
 }
 

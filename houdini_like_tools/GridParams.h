@@ -33,6 +33,9 @@ struct GridParamSet
     /// --interior-band excludes this flag (e.g. "fill-interior"); empty: none.
     std::string interiorExcludes;
     bool worldUnits = false;
+    /// --max-voxels default (GridSpec::maxVoxels: the voxel budget, band voxels plus working
+    /// memory at 4 bytes a voxel; 0: no limit).
+    double maxVoxels = 2e9;
     /// --grid-name default.
     std::string gridName = "surface";
 };

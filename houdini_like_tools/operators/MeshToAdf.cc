@@ -33,6 +33,7 @@ GridParamSet adfGridParams()
                        "resolution); used when --voxel-size is not given";
     g.bands = false;
     g.gridName = "adf";
+    g.maxVoxels = double(uint64_t(64) << 30); // the library's default for ADFs
     return g;
 }
 

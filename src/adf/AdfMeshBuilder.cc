@@ -8,6 +8,7 @@
 #include "adf/AdfMeshProvider.h"
 
 #include "detail/Timer.h"
+#include "detail/VoxelBudget.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/GridSpec.h>
@@ -168,12 +169,10 @@ AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& inputMesh,
             const double ext = (bounds.max()[k] - bounds.min()[k]) / h + 2.0 * std::max(9.0, options.paddingVoxels) + 256;
             dense = uint64_t(double(dense) * ext);
         }
-        if (options.maxVoxels && dense > options.maxVoxels * 2) {
-            std::ostringstream os;
-            os << "the ADF domain would span about " << dense << " finest voxels, more than the limit of " << options.maxVoxels
-               << "; use a larger voxel size";
-            throw ResourceLimitError(os.str());
-        }
+        // the ADF refines only near the surface: half the dense box is the budget's estimate
+        detail::checkVoxelBudget({"mesh to ADF", "the ADF domain",
+                                  "half its dense box of " + std::to_string(dense) + " finest voxels",
+                                  0.5 * double(dense), 0.0, options.maxVoxels, "use a larger voxel size"});
     }
     // pseudonormals (partly serial) concurrently with the voxelization
     std::unique_ptr<PseudoNormals> normalsPtr;
@@ -243,7 +242,7 @@ AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& inputMesh,
         if (options.toleranceVoxels <= 0 || iteration >= 8) break;
         std::vector<std::pair<int, Coord>> failing;
         const auto t3 = detail::Clock::now();
-        checkBounds(*tree, layout, provider, false, 1, options.toleranceVoxels * h, &failing);
+        checkBounds(*tree, layout, provider, false, 1, options.toleranceVoxels * h, &failing, interrupter);
         stats.secondsBounds += detail::secondsSince(t3);
         if (failing.empty()) break;
         for (const auto& f : failing) {
@@ -273,7 +272,8 @@ AdaptiveDistanceField meshToAdaptiveDistanceField(const TriangleMesh& inputMesh,
 
     if (options.computeBounds) {
         const auto t4 = detail::Clock::now();
-        const Bounds b = checkBounds(*tree, layout, provider, true, std::max(1, options.boundStride), 0.0, nullptr);
+        const Bounds b =
+            checkBounds(*tree, layout, provider, true, std::max(1, options.boundStride), 0.0, nullptr, interrupter);
         bound = b.cells;
         stats.levelTestPointVoxels = b.testPoints;
         stats.secondsBounds += detail::secondsSince(t4);

@@ -7,6 +7,7 @@
 
 #include "detail/NumberFormat.h"
 #include "detail/Timer.h"
+#include "detail/VoxelBudget.h"
 #include "expand/FastSweepingInternal.h"
 
 #include <levelforge/core/Exceptions.h>
@@ -158,11 +159,8 @@ openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
                                      4.0 / 3.0 * M_PI * r * r * r - double(inBox.volume()));
         }
     }
-    if (opt.maxVoxels && lowerEstimate > double(opt.maxVoxels)) {
-        throw ResourceLimitError("expandLevelSet: the expanded band would hold about " +
-                                 formatDouble(std::round(lowerEstimate)) + " voxels, more than the limit of " +
-                                 std::to_string(opt.maxVoxels) + " (reduce the widths)");
-    }
+    detail::checkVoxelBudget({"expand level set", "the expanded band", "a lower estimate before the dilation",
+                              std::round(lowerEstimate), 0.0, opt.maxVoxels, "use narrower widths or a larger voxel size"});
     if (opt.interrupter) opt.interrupter->start("fast sweeping");
     progress_internal::check(opt.interrupter, 0);
 
@@ -206,22 +204,15 @@ openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
             vectorMethod ? nullptr : leafDomain(band, rLarge, domainLeaves);
         if (domain) {
             // Sweep: whole leaves, the values capped at the kept widths (see Sweeper)
-            if (opt.maxVoxels && domainLeaves * 512 > opt.maxVoxels) {
-                throw ResourceLimitError("expandLevelSet: the candidate band holds " +
-                                         std::to_string(domainLeaves * 512) +
-                                         " voxels, more than the limit of " +
-                                         std::to_string(opt.maxVoxels) + " (reduce the widths)");
-            }
+            detail::checkVoxelBudget({"expand level set", "the candidate band",
+                                      std::to_string(domainLeaves) + " leaf nodes", double(domainLeaves) * 512.0,
+                                      0.0, opt.maxVoxels, "use narrower widths or a larger voxel size"});
             progress_internal::check(opt.interrupter, 0);
             tree->topologyUnion(*domain);
         } else {
             openvdb::MaskTree::Ptr large = dilated(rLarge);
-            if (opt.maxVoxels && large->activeVoxelCount() > opt.maxVoxels) {
-                throw ResourceLimitError("expandLevelSet: the dilated band holds " +
-                                         std::to_string(large->activeVoxelCount()) +
-                                         " voxels, more than the limit of " +
-                                         std::to_string(opt.maxVoxels) + " (reduce the widths)");
-            }
+            detail::checkVoxelBudget({"expand level set", "the dilated band", "", double(large->activeVoxelCount()),
+                                      0.0, opt.maxVoxels, "use narrower widths or a larger voxel size"});
             tree->topologyUnion(*large);
             if (rSmall < rLarge) {
                 // Keep the larger dilation only on the side that asked for it.
@@ -244,11 +235,8 @@ openvdb::FloatGrid::Ptr expandLevelSet(const openvdb::FloatGrid& input,
     if (interior) tree->topologyUnion(*interior);
     tree->voxelizeActiveTiles();
     stats.secondsTopology = secondsSince(t0);
-    if (opt.maxVoxels && tree->activeVoxelCount() > opt.maxVoxels) {
-        throw ResourceLimitError("expandLevelSet: the expanded grid holds " +
-                                 std::to_string(tree->activeVoxelCount()) +
-                                 " voxels, more than the limit of " + std::to_string(opt.maxVoxels));
-    }
+    detail::checkVoxelBudget({"expand level set", "the expanded grid", "", double(tree->activeVoxelCount()), 0.0,
+                              opt.maxVoxels, "use narrower widths or a larger voxel size"});
     progress_internal::check(opt.interrupter, 0);
 
     // ---- sweeps

@@ -2,6 +2,7 @@
 // T4 scan conversion (Erleben & Dohlmann). See TetScanConversion.h.
 #include "detail/ProgressCheck.h"
 #include "detail/Timer.h"
+#include "detail/VoxelBudget.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/mesh/MeshToLevelSet.h>
@@ -191,20 +192,21 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
     stats.shell = o.shell;
     stats.coverage = o.coverage;
     if (o.maxVoxels > 0) {
-        // Memory guard, the same estimate as meshToLevelSet: band (ext + int) over the area.
-        double area = 0.0; // voxels²
-        for (const Vec3I& t : mMesh.triangles) {
-            const Vec3d& a = mMesh.points[t[0]];
-            area += 0.5 * (mMesh.points[t[1]] - a).cross(mMesh.points[t[2]] - a).length() / (h * h);
-        }
-        const double estimate = area * (extW + intW + 2.0) + double(mMesh.triangles.size());
-        if (estimate > double(o.maxVoxels)) {
-            std::ostringstream os;
-            os << "the band would hold about " << uint64_t(estimate) << " voxels (surface area " << uint64_t(area)
-               << " voxels² × band " << (extW + intW) << " voxels), more than the limit of " << o.maxVoxels
-               << "; use a larger voxel size or narrower band";
-            throw ResourceLimitError(os.str());
-        }
+        // Memory guard, the one every operator uses: the leaves within the band of the surface
+        // (the dilated surface's real volume, not area × width), plus each thread's dense slab.
+        std::vector<Vec3d> cellPts(mMesh.points.size());
+        for (size_t i = 0; i < cellPts.size(); ++i) cellPts[i] = mMesh.points[i] / h + Vec3d(0.5);
+        const uint64_t leaves = detail::bandLeafCount(cellPts, mMesh.triangles, {}, eps, o.interrupter);
+        detail::VoxelBudgetRequest req;
+        req.operation = "mesh to level set (scan conversion)";
+        req.what = "the band";
+        std::ostringstream d;
+        d << leaves << " leaf nodes within " << eps << " voxels of the surface";
+        req.detail = d.str();
+        req.voxels = double(leaves) * 512.0;
+        req.scratchBytes = double(detail::budgetThreads()) * double(o.slabDepth) * o.slabWidth * o.slabWidth * 8.0;
+        req.maxVoxels = o.maxVoxels;
+        detail::checkVoxelBudget(req);
     }
     auto* interrupter = o.interrupter;
     if (interrupter) interrupter->start("mesh to level set (scan conversion)");
@@ -393,7 +395,10 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
             for (size_t g = 0; g < ng; ++g) {
                 stats.voxelsRasterized += raster[g];
                 stats.activeVoxels += activeCount[g];
-                for (auto& l : leaves[g]) tree->addLeaf(l.release());
+                for (auto& l : leaves[g]) {
+                    tree->addLeaf(l.get()); // owned here until the tree has it
+                    l.release();
+                }
             }
             fillSec += secondsSince(ts);
             progress_internal::check(interrupter, 10 + int(85.0 * double(z0 - zStart + D) / double(kHi - zStart + D)));
