@@ -8,6 +8,8 @@
 // by a relative path: levelforge_ops does not have src/ on its include path.
 #include "detail/AtomicFile.h"
 
+#include <levelforge/core/Exceptions.h>
+
 #include <atomic>
 #include <cerrno>
 #include <csignal>
@@ -18,6 +20,7 @@ namespace levelforge::ops {
 namespace {
 
 volatile std::sig_atomic_t gInterrupted = 0;
+volatile std::sig_atomic_t gReading = 0; // a ReadingScope is alive
 std::atomic<int> gSignalCount{0};
 static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a lock-free counter");
 
@@ -49,7 +52,7 @@ extern "C" void onInterruptSignal(int)
         writeStderr("levelforge: error: interrupted while writing; the partial output was removed\n");
         ::_exit(kExitInterrupted);
     }
-    if (count >= 2) {
+    if (count >= 2 || gReading) {
         writeStderr("levelforge: error: interrupted\n");
         ::_exit(kExitInterrupted);
     }
@@ -78,6 +81,17 @@ void installInterruptHandlers()
 }
 
 bool interruptRequested() { return gInterrupted != 0; }
+
+ReadingScope::ReadingScope()
+{
+    gReading = 1;
+    if (interruptRequested()) {
+        gReading = 0;
+        throw InterruptedError("interrupted");
+    }
+}
+
+ReadingScope::~ReadingScope() { gReading = 0; }
 
 bool CliProgress::wasInterrupted(int percent)
 {

@@ -2,6 +2,7 @@
 // levelforge operator `csg`: union, intersection or difference of two ADFs or two level sets
 // (Yin et al. Figure 10; Houdini: VDB Combine in SDF mode).
 #include "Operator.h"
+#include "Interrupt.h"
 
 #include <levelforge/adf/AdaptiveDistanceField.h>
 #include <levelforge/core/Exceptions.h>
@@ -18,7 +19,11 @@ namespace {
 /// The first FloatGrid of a .vdb file (or the one named `name`).
 openvdb::FloatGrid::Ptr firstFloatGrid(const std::string& path, const std::string& name)
 {
-    const auto grids = readGrids(path);
+    openvdb::GridPtrVecPtr grids;
+    {
+        const ReadingScope reading;
+        grids = readGrids(path);
+    }
     for (const auto& g : *grids) {
         if (!g->isType<openvdb::FloatGrid>()) continue;
         if (!name.empty() && g->getName() != name) continue;

@@ -47,7 +47,11 @@ void cookExpand(OperatorArgs& args)
     const std::string& output = args.output("output");
     checkOutputPath(output);
 
-    openvdb::GridPtrVecPtr grids = readGrids(input);
+    openvdb::GridPtrVecPtr grids;
+    {
+        const ReadingScope reading;
+        grids = readGrids(input);
+    }
     openvdb::FloatGrid::Ptr grid =
         pickGrid(*grids, input, args.has("grid-name") ? args.getString("grid-name") : "");
 

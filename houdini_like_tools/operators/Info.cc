@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // levelforge operator `info`: describe the grids of a .vdb file (like `vdb_print -l`).
 #include "Operator.h"
+#include "Interrupt.h"
 #include "OperatorText.h"
 
 #include <levelforge/core/Metadata.h>
@@ -94,7 +95,11 @@ void describeGrid(std::ostream& os, const openvdb::GridBase& grid)
 void cookInfo(OperatorArgs& args)
 {
     const std::string& path = args.input("file");
-    const openvdb::GridPtrVecPtr grids = readGrids(path);
+    openvdb::GridPtrVecPtr grids;
+    {
+        const ReadingScope reading;
+        grids = readGrids(path);
+    }
     const std::string& only = args.getString("grid");
     std::ostream& os = args.out();
     os << path << ": " << grids->size() << (grids->size() == 1 ? " grid" : " grids") << "\n";

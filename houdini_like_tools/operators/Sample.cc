@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // levelforge operator `sample`: the signed distance of an ADF or a level set at a world point.
 #include "Operator.h"
+#include "Interrupt.h"
 
 #include <levelforge/adf/AdaptiveDistanceField.h>
 #include <levelforge/core/Exceptions.h>
@@ -37,7 +38,11 @@ void cookSample(OperatorArgs& args)
     const Vec3d p(parseCoordinate(args.input("x"), "x"), parseCoordinate(args.input("y"), "y"),
                   parseCoordinate(args.input("z"), "z"));
     const std::string name = args.isSet("grid") ? args.getString("grid") : std::string();
-    const auto grids = readGrids(path);
+    openvdb::GridPtrVecPtr grids;
+    {
+        const ReadingScope reading;
+        grids = readGrids(path);
+    }
     openvdb::FloatGrid::Ptr grid;
     for (const auto& g : *grids)
         if (g->isType<openvdb::FloatGrid>() && (name.empty() || g->getName() == name)) {

@@ -92,6 +92,7 @@ ScalarVolume loadVolumeArg(OperatorArgs& args, const std::string& input, VolumeI
         raw.headerBytes = uint64_t(args.getInt("raw-header-bytes"));
         ro.raw = raw;
     }
+    const ReadingScope reading;
     return readVolume(input, ro, &info);
 }
 
@@ -147,7 +148,11 @@ void cookSparse(OperatorArgs& args, const std::string& input, const std::string&
     ReadVolumeOptions ro;
     if (args.isSet("vdb-grid")) ro.vdbGridName = args.getString("vdb-grid");
     VolumeInfo info;
-    const openvdb::FloatGrid::Ptr field = readVdbScalarGrid(input, ro, &info);
+    openvdb::FloatGrid::Ptr field;
+    {
+        const ReadingScope reading;
+        field = readVdbScalarGrid(input, ro, &info);
+    }
     VolumeToLevelSetOptions opt = levelSetOptionsFrom(args);
     CliProgress progress(10, !args.getBool("quiet"));
     opt.interrupter = &progress;
