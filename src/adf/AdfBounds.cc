@@ -6,11 +6,14 @@
 #include "adf/AdfLeafSearch.h"
 #include "adf/AdfMeshProvider.h"
 
+#include <levelforge/core/Exceptions.h>
+
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
 namespace levelforge {
@@ -82,11 +85,19 @@ struct BoundAcc
 } // namespace
 
 Bounds checkBounds(const FloatTree& tree, const Layout& layout, MeshProvider& mp, bool leafCells, int unitStride,
-                   double tolWorld, std::vector<std::pair<int, Coord>>* failing)
+                   double tolWorld, std::vector<std::pair<int, Coord>>* failing,
+                   openvdb::util::NullInterrupter* interrupter)
 {
     const CoordBBox dom = layout.domain;
     const double h = mp.mH, e3 = std::sqrt(3.0) / 2 * h;
     tbb::enumerable_thread_specific<BoundAcc> accs;
+    std::atomic<bool> stop{false};
+    auto poll = [&] {
+        if (interrupter && !stop.load(std::memory_order_relaxed) && interrupter->wasInterrupted()) stop = true;
+    };
+    auto throwIfStopped = [&] {
+        if (stop.load()) throw InterruptedError("interrupted while checking the ADF's error bounds");
+    };
     // tile cells
     std::vector<CellInfo> tileCells;
     for (const Coord& b : layout.subdividedL2) {
@@ -98,6 +109,7 @@ Bounds checkBounds(const FloatTree& tree, const Layout& layout, MeshProvider& mp
     for (const Coord& b : layout.tileL2)
         if (inDomainCell(dom, b)) tileCells.push_back({128, b});
     tbb::parallel_for(tbb::blocked_range<size_t>(0, tileCells.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+        if (stop.load(std::memory_order_relaxed)) return;
         Reconstruction rec(tree, dom);
         BoundAcc& acc = accs.local();
         MeshScratch& s = mp.mScratch.local();
@@ -114,10 +126,13 @@ Bounds checkBounds(const FloatTree& tree, const Layout& layout, MeshProvider& mp
             acc.add(levelOfSize(X.size), worstTest + e3, worst + e3 + lip);
             if (tolWorld > 0 && worstTest > tolWorld) acc.failing.push_back({levelOfSize(X.size), X.origin});
         }
+        poll();
     });
+    throwIfStopped();
     if (leafCells) {
         const size_t nLeaves = layout.leafOrigins.size();
         tbb::parallel_for(tbb::blocked_range<size_t>(0, nLeaves, 4), [&](const tbb::blocked_range<size_t>& r) {
+            if (stop.load(std::memory_order_relaxed)) return;
             Reconstruction rec(tree, dom);
             BoundAcc& acc = accs.local();
             MeshScratch& s = mp.mScratch.local();
@@ -144,7 +159,9 @@ Bounds checkBounds(const FloatTree& tree, const Layout& layout, MeshProvider& mp
                             acc.add(levelOfSize(X.size), worstTest, worst + lip);
                         }
             }
+            poll();
         });
+        throwIfStopped();
     }
     Bounds out;
     out.testPoints.fill(-1);

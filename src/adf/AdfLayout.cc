@@ -98,9 +98,10 @@ FloatTree::Ptr createTree(const Layout& layout, float background)
     auto tree = std::make_shared<FloatTree>(background);
     for (const Coord& b : layout.subdividedL2) tree->addTile(1, b, 0.0f, false); // creates the internal-1 node
     for (size_t i = 0; i < layout.leafOrigins.size(); ++i) {
-        auto* leaf = new FloatLeaf(layout.leafOrigins[i], 0.0f, false);
+        auto leaf = std::make_unique<FloatLeaf>(layout.leafOrigins[i], 0.0f, false);
         leaf->setValueMask(layout.leafMasks[i]);
-        tree->addLeaf(leaf);
+        tree->addLeaf(leaf.get()); // owned here until the tree has it
+        leaf.release();
     }
     for (const Coord& b : layout.tileL2) tree->addTile(2, b, 0.0f, false);
     return tree;

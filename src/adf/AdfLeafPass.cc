@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <memory>
 
 namespace levelforge {
 namespace adf_internal {
@@ -21,7 +22,7 @@ LF_HOT void MeshProvider::leafSamplesImpl(FloatLeaf& leaf, const uint8_t* isFree
     MeshScratch& s = mScratch.local();
     const Coord o = leaf.origin();
     gather(o, s, true);
-    FloatLeaf* t1 = nullptr;
+    std::unique_ptr<FloatLeaf> t1; // the type-1 samples of this leaf, if any
     for (int off = 0; off < 512; ++off) {
         if (!isFree[off]) continue;
         const int x = off >> 6, y = (off >> 3) & 7, z = off & 7;
@@ -46,14 +47,14 @@ LF_HOT void MeshProvider::leafSamplesImpl(FloatLeaf& leaf, const uint8_t* isFree
         out[off] = float(v);
         if (type1) {
             ++s.type1;
-            if (!t1) t1 = new FloatLeaf(o, 0.0f, false);
+            if (!t1) t1 = std::make_unique<FloatLeaf>(o, 0.0f, false);
             t1->setValueOn(openvdb::Index(off), float(v));
         } else {
             ++s.type2;
             s.type2MaxBound = std::max(s.type2MaxBound, cert);
         }
     }
-    if (t1) mType1Leaves.local().push_back(t1);
+    if (t1) mType1Leaves.local().push_back(std::move(t1));
 }
 
 

@@ -21,11 +21,7 @@ MeshProvider::MeshProvider(const TriangleMesh& mesh, const std::vector<Vec3d>& c
 {
 }
 
-MeshProvider::~MeshProvider()
-{
-    for (auto& v : mType1Leaves)
-        for (FloatLeaf* l : v) delete l;
-}
+MeshProvider::~MeshProvider() = default;
 
 void MeshProvider::setDomain(const CoordBBox& domain)
 {
@@ -42,11 +38,21 @@ void MeshProvider::afterLeaves(FloatTree& adfTree)
         mEdtBuilt = true;
     }
     mType1 = std::make_shared<FloatTree>(1e30f);
-    std::vector<FloatLeaf*> all;
-    for (auto& v : mType1Leaves) all.insert(all.end(), v.begin(), v.end());
-    std::sort(all.begin(), all.end(), [](const FloatLeaf* a, const FloatLeaf* b) { return a->origin() < b->origin(); });
-    for (FloatLeaf* l : all) mType1->addLeaf(l);
+    std::vector<std::unique_ptr<FloatLeaf>> all;
+    size_t count = 0;
+    for (auto& v : mType1Leaves) count += v.size();
+    all.reserve(count);
+    for (auto& v : mType1Leaves)
+        for (auto& l : v) all.push_back(std::move(l));
     mType1Leaves.clear();
+    std::sort(all.begin(), all.end(), [](const std::unique_ptr<FloatLeaf>& a, const std::unique_ptr<FloatLeaf>& b) {
+        return a->origin() < b->origin();
+    });
+    // owned here until the tree has it (addLeaf may fail allocating the nodes above it)
+    for (auto& l : all) {
+        mType1->addLeaf(l.get());
+        l.release();
+    }
     openvdb::tools::signedFloodFill(*mType1);
     mT1Acc.clear();
     fixDeferred(adfTree);

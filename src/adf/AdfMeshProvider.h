@@ -21,6 +21,7 @@
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tree/ValueAccessor.h>
+#include <openvdb/util/NullInterrupter.h>
 
 #include <tbb/enumerable_thread_specific.h>
 
@@ -208,7 +209,7 @@ public:
     CoordBBox mEdtDomain;
     bool mEdtBuilt = false;
     tbb::enumerable_thread_specific<MeshScratch> mScratch;
-    tbb::enumerable_thread_specific<std::vector<FloatLeaf*>> mType1Leaves;
+    tbb::enumerable_thread_specific<std::vector<std::unique_ptr<FloatLeaf>>> mType1Leaves;
     tbb::enumerable_thread_specific<std::vector<float*>> mDeferredSign;
     std::shared_ptr<FloatTree> mType1;
     mutable tbb::enumerable_thread_specific<std::unique_ptr<openvdb::tree::ValueAccessor<const FloatTree, false>>> mT1Acc;
@@ -221,8 +222,11 @@ struct Bounds { std::array<double, kAdfLevels> testPoints, cells; };
 /// Checks the reconstruction at the test points of every tile cell (levels 3, 4) and, if
 /// `leafCells`, of the cells inside leaves (level 0: every unitStride-th finest cell). Returns per-level
 /// (deviation + reference bound), in voxels; collects tile cells deviating more than tolWorld.
+/// Polls `interrupter` (if set) after every 64 tile cells and every 4 leaves; throws
+/// InterruptedError when it asks to stop.
 Bounds checkBounds(const FloatTree& tree, const Layout& layout, MeshProvider& mp, bool leafCells, int unitStride,
-                   double tolWorld, std::vector<std::pair<int, Coord>>* failing);
+                   double tolWorld, std::vector<std::pair<int, Coord>>* failing,
+                   openvdb::util::NullInterrupter* interrupter = nullptr);
 
 } // namespace adf_internal
 } // namespace levelforge

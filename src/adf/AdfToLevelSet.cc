@@ -76,11 +76,11 @@ openvdb::FloatGrid::Ptr adaptiveDistanceFieldToLevelSet(const AdaptiveDistanceFi
         }
     }
     std::sort(cand.begin(), cand.end());
-    std::vector<FloatLeaf*> out(cand.size(), nullptr);
+    std::vector<std::unique_ptr<FloatLeaf>> out(cand.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, cand.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
         Reconstruction rec(tree, dom);
         for (size_t i = r.begin(); i != r.end(); ++i) {
-            auto* leaf = new FloatLeaf(cand[i], bg, false);
+            auto leaf = std::make_unique<FloatLeaf>(cand[i], bg, false);
             bool any = false;
             for (openvdb::Index off = 0; off < FloatLeaf::SIZE; ++off) {
                 const Coord p = leaf->offsetToGlobalCoord(off);
@@ -92,12 +92,15 @@ openvdb::FloatGrid::Ptr adaptiveDistanceFieldToLevelSet(const AdaptiveDistanceFi
                     leaf->setValueOff(off, d < 0 ? -bg : bg);
                 }
             }
-            if (any) out[i] = leaf; else delete leaf;
+            if (any) out[i] = std::move(leaf);
         }
     });
     auto lsTree = std::make_shared<FloatTree>(bg);
-    for (FloatLeaf* l : out)
-        if (l) lsTree->addLeaf(l);
+    for (auto& l : out) {
+        if (!l) continue;
+        lsTree->addLeaf(l.get()); // owned here until the tree has it
+        l.release();
+    }
     openvdb::tools::signedFloodFill(*lsTree);
     auto grid = openvdb::FloatGrid::create(lsTree);
     grid->setTransform(adf.grid()->transform().copy());

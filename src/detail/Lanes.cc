@@ -81,7 +81,11 @@ void runLanes(int lanes, const std::function<void(int)>& lane, std::atomic<bool>
     };
 
     std::vector<std::thread> threads;
-    std::string startFailure;
+    // A thread that cannot be created (std::system_error: no more threads; std::bad_alloc): the
+    // threads that exist must leave and be joined before anything else may throw (a joinable
+    // std::thread destroyed by the unwinding would end the process), so the handler only keeps
+    // the exception; the message (which allocates) is built after the joins.
+    std::exception_ptr startError;
     try {
         threads.reserve(size_t(lanes - 1));
         for (int t = 1; t < lanes; ++t) {
@@ -94,14 +98,21 @@ void runLanes(int lanes, const std::function<void(int)>& lane, std::atomic<bool>
                 if (gate.pass()) body(t);
             });
         }
-    } catch (const std::exception& e) { // std::system_error (no more threads), std::bad_alloc
-        startFailure = "cannot start lane thread " + std::to_string(threads.size() + 1) + " of " +
-                       std::to_string(lanes) + ": " + message_internal::cutDependencyMessage(e.what());
+    } catch (...) {
+        startError = std::current_exception();
     }
-    if (!startFailure.empty()) {
+    if (startError) {
         gate.open(false); // the threads that exist leave without running their lane
         for (auto& th : threads) th.join();
-        throw LaneStartError(startFailure);
+        std::string why = "unknown error";
+        try {
+            std::rethrow_exception(startError);
+        } catch (const std::exception& e) {
+            why = message_internal::cutDependencyMessage(e.what());
+        } catch (...) {
+        }
+        throw LaneStartError("cannot start lane thread " + std::to_string(threads.size() + 1) + " of " +
+                             std::to_string(lanes) + ": " + why);
     }
     gate.open(true);
     body(0);
@@ -139,7 +150,7 @@ bool wavefrontOnLanes(int stages, int rows, int chunks, int lookahead, int lanes
                       const std::function<void(int, int, int)>& work, const std::function<bool(int)>& beginStage,
                       std::atomic<bool>& ran)
 {
-    std::unique_ptr<LaneProgress[]> progress(new LaneProgress[size_t(rows)]);
+    const auto progress = std::make_unique<LaneProgress[]>(size_t(rows));
     SpinBarrier barrier(lanes);
     std::atomic<bool> stop{false};   // beginStage asked to stop (seen by all after the barrier)
     std::atomic<bool> failed{false}; // a lane threw (raised by runLanes): leave every wait now

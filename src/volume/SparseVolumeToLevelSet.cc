@@ -101,8 +101,11 @@ openvdb::FloatTree::Ptr keptVoxels(const openvdb::FloatTree& src, float bg, cons
         }
     });
     auto tree = std::make_shared<openvdb::FloatTree>(bg);
-    for (auto& l : leaves)
-        if (l) tree->addLeaf(l.release());
+    for (auto& l : leaves) {
+        if (!l) continue;
+        tree->addLeaf(l.get()); // owned here until the tree has it
+        l.release();
+    }
     return tree;
 }
 

@@ -4,6 +4,7 @@
 
 #include "detail/NumberFormat.h"
 #include "detail/Timer.h"
+#include "detail/VoxelBudget.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/reference/ExactReference.h>
@@ -18,6 +19,7 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -71,9 +73,8 @@ void checkOptions(const ScalarVolume& f, const VolumeToLevelSetOptions& o)
                                    ", voxelCount " + std::to_string(o.voxelCount));
     if (f.empty()) throw InvalidArgumentError("volume to level set: the volume is empty");
     requireValidVolume(f, "volume to level set");
-    if (o.maxVoxels && f.voxelCount() > o.maxVoxels)
-        throw ResourceLimitError("volume to level set: the volume has " + std::to_string(f.voxelCount()) +
-                                 " samples, more than the limit of " + std::to_string(o.maxVoxels));
+    detail::checkVoxelBudget({"volume to level set", "the dense volume", "one voxel per sample",
+                              double(f.voxelCount()), 0.0, o.maxVoxels, "crop or resample the volume"});
     if (!std::isfinite(o.iso)) throw InvalidArgumentError("volume to level set: the iso-value must be finite");
     for (size_t i = 0; i < f.data.size(); ++i) {
         if (std::isnan(f.data[i])) {
@@ -140,17 +141,29 @@ ScalarVolume volumeSignedDistance(const ScalarVolume& field, const VolumeToLevel
             stats.shell.triangles = surface.triangles.size();
             stats.secondsClassify = secondsSince(t0);
             t0 = Clock::now();
+            auto* interrupter = o.interrupter;
+            if (interrupter) interrupter->start("volume to level set (exact)");
             const ExactReference ref(surface);
             result = ScalarVolume(field.dims, 0.0f, field.spacing, field.origin);
-            const int nx = field.dims.x(), ny = field.dims.y();
-            tbb::parallel_for(tbb::blocked_range<int>(0, field.dims.z()), [&](const tbb::blocked_range<int>& r) {
+            const int nx = field.dims.x(), ny = field.dims.y(), nz = field.dims.z();
+            // one BVH query per voxel: the interrupter is polled after every row
+            std::atomic<bool> stop{false};
+            std::atomic<int64_t> rowsDone{0};
+            const double rows = double(ny) * double(nz);
+            tbb::parallel_for(tbb::blocked_range<int>(0, nz), [&](const tbb::blocked_range<int>& r) {
                 for (int k = r.begin(); k != r.end(); ++k)
-                    for (int j = 0; j < ny; ++j)
+                    for (int j = 0; j < ny; ++j) {
+                        if (stop.load(std::memory_order_relaxed)) return;
                         for (int i = 0; i < nx; ++i) {
                             const double d = std::abs(ref.query(field.worldPosition(i, j, k)).distance);
                             result(i, j, k) = float(inside(i, j, k) ? -d : d);
                         }
+                        const double done = double(rowsDone.fetch_add(1, std::memory_order_relaxed) + 1);
+                        if (interrupter && interrupter->wasInterrupted(int(100.0 * done / rows))) stop = true;
+                    }
             });
+            if (stop) throw InterruptedError("interrupted while computing exact distances to the iso-surface");
+            if (interrupter) interrupter->end();
             stats.secondsTransform = secondsSince(t0);
         } else {
             VectorVolume v = subvoxelShell(field, so, &stats.shell);
