@@ -10,6 +10,9 @@
 // --repeat N: seconds are the best of N runs (the machine is shared); stderr also gives the best
 // user+system CPU seconds, the result digest and the sweep counters. --no-accuracy skips the
 // comparison with the exact reference (timing only).
+// With dilateSdf, each levelforge row is also printed as one machine-readable line
+// (SPEED label=<mesh>@<res>/w<width>/<method> ... anchor=openvdb_dilateSdf ..., BenchUtil.h),
+// from the same best-of-N times, for scripts/bench --smoke.
 //
 // Prints one markdown table row per (mesh, resolution, width, method): seconds, active voxels,
 // missing voxels (every inactive face-neighbour of the result is checked against the exact
@@ -167,6 +170,7 @@ int main(int argc, char** argv)
     std::printf("| mesh | res | width | method | seconds | active voxels | missing | mean / max err | "
                 "mean / max err, common voxels | sign err | rounds | s / M swept voxels |\n"
                 "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::string speedLines; // printed after the table
     for (const std::string& path : meshes) {
         const TriangleMesh mesh = readMesh(path);
         const ExactReference ref(mesh);
@@ -253,6 +257,9 @@ int main(int argc, char** argv)
                         std::snprintf(buf, sizeof(buf), ", %.1fx faster than dilateSdf", tOv / tOurs);
                         ratio = buf;
                     }
+                    if (ov) speedLines += levelforge_bench::speedLine(name + "@" + std::to_string(int(res)) + "/w" +
+                                                                          levelforge_bench::shortNumber(w) + "/" + method,
+                                                                      tOurs, "openvdb_dilateSdf", tOv);
                     std::printf("| %s | %d | %g | levelforge %s | %.2f (topology %.2f, %s %.2f%s) | "
                                 "%llu | %llu | %.4f / %.3f | %s | %llu | %d | %.3f |\n",
                                 name.c_str(), int(res), w, method.c_str(), tOurs, st.secondsTopology,
@@ -282,5 +289,6 @@ int main(int argc, char** argv)
             }
         }
     }
+    if (!speedLines.empty()) std::printf("\n%s", speedLines.c_str());
     return 0;
 }

@@ -3,17 +3,22 @@
 // side by side with the exact Chang path (levelforge::meshToLevelSet) and
 // openvdb::tools::meshToLevelSet at equal band, all measured against the exact reference.
 //
-//   levelforge_bench_scan [--res 128,256] [--band 3] [--stride 7] [--no-openvdb] [--conservative] mesh.obj ...
+//   levelforge_bench_scan [--res 128,256] [--band 3] [--stride 7] [--repeat 1] [--warmup 1] [--no-openvdb]
+//                         [--conservative] mesh.obj ...
 //   levelforge_bench_scan --png shells.png [--res 64] [--band 4]     (Figure 28-style picture)
 //
 // Methods: chang; scan with the covering shells (ShellCoverage::Complete: the eps-prism that
 // pseudonormal/thin/offset complete to, and obb); scan with the paper's hulls (ShellCoverage::
 // Paper: pseudonormal, thin, offset), with --conservative also pseudonormal / offset with
 // conservative (cell-overlap) rasterization; openvdb. Table: one markdown row per (mesh,
-// resolution, method): seconds (best of --repeat, default 1),
+// resolution, method): seconds (best of --repeat, default 1, after --warmup untimed runs of the
+// same call, default 1, so that no method is charged for first-touch page faults, the thread
+// pool or code paging that an earlier method already paid),
 // tetrahedra per face, overlap factor (voxels rasterized per active voxel), active voxels,
 // missing voxels (inactive face-neighbours of the result whose exact distance lies inside the
-// band), mean / max error over every `stride`-th active voxel (voxels), sign errors.
+// band), mean / max error over every `stride`-th active voxel (voxels), sign errors. With OpenVDB,
+// each levelforge method is then printed as one machine-readable line (SPEED label=<mesh>@<res>/
+// <method> ... anchor=openvdb_meshToLevelSet ..., BenchUtil.h) for scripts/bench --smoke.
 //
 // --png: a 2 x 2 panel of the four shells on a 16-sided cylinder (the paper's Figure 28 uses a
 // cylinder): the plane y = 0 through the axis; red = negative, blue = positive (brightness falls
@@ -146,7 +151,7 @@ int main(int argc, char** argv)
     std::vector<double> resolutions{128, 256};
     double band = 3.0;
     uint64_t stride = 7;
-    int repeat = 1;
+    int repeat = 1, warmup = 1;
     bool withOpenVdb = true, withConservative = false;
     std::string png;
     std::vector<std::string> meshes;
@@ -155,6 +160,7 @@ int main(int argc, char** argv)
         else if (!std::strcmp(argv[i], "--band") && i + 1 < argc) band = std::stod(argv[++i]);
         else if (!std::strcmp(argv[i], "--stride") && i + 1 < argc) stride = std::stoull(argv[++i]);
         else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) repeat = std::max(1, std::stoi(argv[++i]));
+        else if (!std::strcmp(argv[i], "--warmup") && i + 1 < argc) warmup = std::max(0, std::stoi(argv[++i]));
         else if (!std::strcmp(argv[i], "--png") && i + 1 < argc) png = argv[++i];
         else if (!std::strcmp(argv[i], "--no-openvdb")) withOpenVdb = false;
         else if (!std::strcmp(argv[i], "--conservative")) withConservative = true;
@@ -163,10 +169,11 @@ int main(int argc, char** argv)
     openvdb::initialize();
     if (!png.empty()) return renderShells(png, int(resolutions.front() > 128 ? 64 : resolutions.front()), float(band));
     if (meshes.empty()) {
-        std::fprintf(stderr, "usage: levelforge_bench_scan [--res 128,256] [--band 3] [--stride 7] [--repeat 1] "
+        std::fprintf(stderr, "usage: levelforge_bench_scan [--res 128,256] [--band 3] [--stride 7] [--repeat 1] [--warmup 1] "
                              "[--no-openvdb] [--conservative] mesh...\n       levelforge_bench_scan --png out.png [--res 64] [--band 4]\n");
         return 2;
     }
+    std::string speedLines; // printed after the table
     std::printf("| mesh | triangles | res | method | seconds | tets/face | overlap | active voxels | missing | "
                 "mean / max err (voxels) | sign err |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const std::string& path : meshes) {
@@ -184,6 +191,10 @@ int main(int argc, char** argv)
                 r.method = method;
                 openvdb::FloatGrid::Ptr g;
                 r.seconds = 1e300;
+                for (int k = 0; k < warmup; ++k) {
+                    Row scratch;
+                    (void)fn(scratch); // untimed
+                }
                 for (int k = 0; k < repeat; ++k) {
                     g.reset();
                     const auto t0 = Clock::now();
@@ -240,8 +251,15 @@ int main(int argc, char** argv)
                             (unsigned long long)r.active, (unsigned long long)r.err.missingVoxels, r.err.meanError,
                             r.err.maxError, (unsigned long long)r.err.signErrors);
             }
+            if (withOpenVdb) {
+                const Row& anchor = rows.back();
+                for (size_t k = 0; k + 1 < rows.size(); ++k)
+                    speedLines += levelforge_bench::speedLine(name + "@" + std::to_string(int(res)) + "/" + rows[k].method,
+                                                              rows[k].seconds, "openvdb_meshToLevelSet", anchor.seconds);
+            }
             std::fflush(stdout);
         }
     }
+    if (!speedLines.empty()) std::printf("\n%s", speedLines.c_str());
     return 0;
 }

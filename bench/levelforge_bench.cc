@@ -9,6 +9,16 @@
 //
 //   levelforge_bench mesh.obj --voxel-count 1024 --half-width 3 [--subdivide 2]
 //                    [--error-stride N] [--threads N] [--repeat N] [--json out.json] [--skip-openvdb]
+//                    [--openvdb-flags both|default|disable-renormalization]
+//
+// The OpenVDB anchor runs twice by default (--openvdb-flags both): as meshToLevelSet, i.e. with
+// its default conversion flags, which renormalize the band (one reinitialization step whose
+// minimum with the field lowers values where |grad phi| != 1, so near-surface values move on
+// purpose), and as meshToVolume with MeshToVolumeFlags::DISABLE_RENORMALIZATION (the same
+// conversion, points transformed the same way, without that step). Both are timed and checked
+// against the exact reference; the speed-up is printed against each. Each compared row is also
+// printed as one machine-readable line (SPEED label=... levelforge_s=... anchor=... anchor_s=...
+// ratio=..., see BenchUtil.h) for scripts/bench --smoke.
 //
 // Memory: before each method the heap is trimmed (malloc_trim, and tbbmalloc's
 // TBBMALLOC_CLEAN_ALL_BUFFERS), VmRSS is read, and the kernel's high-water mark is reset by
@@ -32,8 +42,11 @@
 
 
 #include "BenchLoop.h"
+#include "BenchUtil.h"
 
 #include <CLI/CLI.hpp>
+
+#include <filesystem>
 
 #include <tbb/global_control.h>
 #include <tbb/blocked_range.h>
@@ -150,6 +163,30 @@ int runChild(const std::vector<std::string>& args)
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+// ------------------------------------------------------------------ OpenVDB anchor
+
+/// openvdb::tools::meshToLevelSet with its default flags (renormalize = true), or the same
+/// conversion with MeshToVolumeFlags::DISABLE_RENORMALIZATION: meshToLevelSet's own steps for a
+/// triangle mesh (points to index space in parallel, QuadAndTriangleDataAdapter, meshToVolume
+/// with equal exterior and interior widths), the flag added.
+openvdb::FloatGrid::Ptr openVdbLevelSet(const openvdb::math::Transform& xform, const std::vector<openvdb::Vec3s>& points,
+                                        const std::vector<openvdb::Vec3I>& triangles, float halfWidth, bool renormalize)
+{
+    if (renormalize) return openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(xform, points, triangles, halfWidth);
+    if (points.empty()) return openvdb::FloatGrid::create(halfWidth);
+    std::vector<openvdb::Vec3s> indexPoints(points.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, points.size()), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t n = r.begin(); n != r.end(); ++n) {
+            const openvdb::Vec3d p = xform.worldToIndex(openvdb::Vec3d(points[n][0], points[n][1], points[n][2]));
+            indexPoints[n] = openvdb::Vec3s(float(p[0]), float(p[1]), float(p[2]));
+        }
+    });
+    openvdb::tools::QuadAndTriangleDataAdapter<openvdb::Vec3s, openvdb::Vec3I> adapter(
+        indexPoints.data(), indexPoints.size(), triangles.data(), triangles.size());
+    return openvdb::tools::meshToVolume<openvdb::FloatGrid>(adapter, xform, halfWidth, halfWidth,
+                                                            openvdb::tools::DISABLE_RENORMALIZATION);
+}
+
 // ------------------------------------------------------------------ results
 
 struct MethodResult
@@ -242,6 +279,11 @@ int main(int argc, char** argv)
     app.add_option("--repeat", repeat, "run each method N times; the best time is reported")->check(CLI::Range(1, 100));
     app.add_option("--json", jsonPath, "also write the results as JSON");
     app.add_flag("--skip-openvdb", skipOpenVdb, "run levelforge only");
+    std::string openVdbFlags = "both";
+    app.add_option("--openvdb-flags", openVdbFlags,
+                   "OpenVDB anchor: default (meshToLevelSet, renormalization on), disable-renormalization "
+                   "(MeshToVolumeFlags::DISABLE_RENORMALIZATION) or both")
+        ->check(CLI::IsMember({"both", "default", "disable-renormalization"}));
     app.add_flag("--skip-levelforge", skipLevelforge, "run OpenVDB only (e.g. to measure its memory in isolation)");
     app.add_flag("--openvdb-first", openVdbFirst, "run OpenVDB before levelforge in each repetition");
     app.add_flag("--skip-errors", skipErrors, "do not compare with the exact reference");
@@ -251,6 +293,8 @@ int main(int argc, char** argv)
                  "do not measure each method's peak memory in a fresh process of its own (see docs/benchmarks.md)");
     app.add_option("--memory-child-out", childOut, "internal: run as a measuring child, write results here")->group("");
     CLI11_PARSE(app, argc, argv);
+    const bool runOvDefault = !skipOpenVdb && openVdbFlags != "disable-renormalization";
+    const bool runOvPlain = !skipOpenVdb && openVdbFlags != "default";
 
     openvdb::initialize();
     std::unique_ptr<tbb::global_control> threadLimit;
@@ -302,9 +346,10 @@ int main(int argc, char** argv)
         // Same index space for both: voxel ijk centred at world ijk*h.
         const openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(h);
 
-        MethodResult lf, ov;
+        MethodResult lf, ov, ovp; // ovp: OpenVDB with DISABLE_RENORMALIZATION
         lf.name = "levelforge";
         ov.name = "OpenVDB";
+        ovp.name = "OpenVDB no renorm";
         levelforge::MeshToLevelSetStats stats;
 
         // Start TBB's worker threads (stacks, malloc arenas) before anything is measured, so that
@@ -328,8 +373,9 @@ int main(int argc, char** argv)
                 std::vector<openvdb::Vec3I> bt;
                 for (const auto& p : ball.points) bp.emplace_back(float(p[0]), float(p[1]), float(p[2]));
                 for (const auto& t : ball.triangles) bt.emplace_back(t[0], t[1], t[2]);
-                (void)openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(
-                    *openvdb::math::Transform::createLinearTransform(2.0 / 64), bp, bt, halfWidth);
+                const auto bx = openvdb::math::Transform::createLinearTransform(2.0 / 64);
+                if (runOvDefault) (void)openVdbLevelSet(*bx, bp, bt, halfWidth, true);
+                if (runOvPlain) (void)openVdbLevelSet(*bx, bp, bt, halfWidth, false);
             }
         }
 
@@ -344,32 +390,40 @@ int main(int argc, char** argv)
             lf.peaksMB.push_back(mem.peakMB());
             stats = s;
             lf.ran = true;
-            std::cout << "  run " << r + 1 << ": levelforge " << fmt(lf.seconds.back()) << " s, peak "
+            std::cout << "  run " << r + 1 << ": levelforge         " << fmt(lf.seconds.back()) << " s, peak "
                       << fmt(lf.peaksMB.back(), 1) << " MB\n" << std::flush;
         };
-        auto runOpenVdb = [&](int r) {
-            ov.grid.reset();
+        auto runOpenVdbOne = [&](MethodResult& m, bool renormalize, int r) {
+            m.grid.reset();
             MemProbe mem;
             mem.start();
             const auto t = Clock::now();
-            ov.grid = openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(*xform, vdbPoints, vdbTris, halfWidth);
-            ov.seconds.push_back(secondsSince(t));
-            ov.peaksMB.push_back(mem.peakMB());
-            ov.ran = true;
-            std::cout << "  run " << r + 1 << ": OpenVDB    " << fmt(ov.seconds.back()) << " s, peak "
-                      << fmt(ov.peaksMB.back(), 1) << " MB\n" << std::flush;
+            m.grid = openVdbLevelSet(*xform, vdbPoints, vdbTris, halfWidth, renormalize);
+            m.seconds.push_back(secondsSince(t));
+            m.peaksMB.push_back(mem.peakMB());
+            m.ran = true;
+            std::cout << "  run " << r + 1 << ": " << std::left << std::setw(18) << m.name << std::right << " "
+                      << fmt(m.seconds.back()) << " s, peak " << fmt(m.peaksMB.back(), 1) << " MB\n" << std::flush;
+        };
+        auto runOpenVdb = [&](int r) {
+            if (runOvDefault) runOpenVdbOne(ov, true, r);
+            if (runOvPlain) runOpenVdbOne(ovp, false, r);
         };
         // Peak memory of each method in a fresh process of its own (the same program, one method,
         // one run, no error check). In one process, memory the allocators kept from an earlier
         // run is reused by a later one and hides part of its peak; see docs/benchmarks.md.
         if (childOut.empty() && !noIsolation) {
-            for (MethodResult* m : {&lf, &ov}) {
-                if ((m == &lf && skipLevelforge) || (m == &ov && skipOpenVdb)) continue;
+            for (MethodResult* m : {&lf, &ov, &ovp}) {
+                if ((m == &lf && skipLevelforge) || (m == &ov && !runOvDefault) || (m == &ovp && !runOvPlain)) continue;
                 const std::string out = "/tmp/levelforge_bench_child_" + std::to_string(::getpid()) + ".txt";
                 std::vector<std::string> args = {selfExe(), meshPath, "--voxel-count", std::to_string(voxelCount),
                                                  "--half-width", fmt(halfWidth, 6), "--subdivide", std::to_string(subdivide),
                                                  "--threads", std::to_string(threads), "--repeat", "1", "--skip-errors",
                                                  m == &lf ? "--skip-openvdb" : "--skip-levelforge", "--memory-child-out", out};
+                if (m != &lf) {
+                    args.push_back("--openvdb-flags");
+                    args.push_back(m == &ov ? "default" : "disable-renormalization");
+                }
                 std::cout << "  own process: " << m->name << " ..." << std::flush;
                 const int rc = runChild(args);
                 std::ifstream in(out);
@@ -389,12 +443,12 @@ int main(int argc, char** argv)
             if (!openVdbFirst && !skipOpenVdb) runOpenVdb(r);
         }
         if (!childOut.empty()) {
-            const MethodResult& m = lf.ran ? lf : ov;
+            const MethodResult& m = lf.ran ? lf : ov.ran ? ov : ovp;
             std::ofstream out(childOut);
             out << std::setprecision(10) << m.peakMB() << " " << m.bestSeconds() << "\n";
             return out ? 0 : 1;
         }
-        for (MethodResult* m : {&lf, &ov}) {
+        for (MethodResult* m : {&lf, &ov, &ovp}) {
             if (!m->ran) continue;
             m->activeVoxels = m->grid->activeVoxelCount();
             m->leafNodes = m->grid->tree().leafCount();
@@ -406,13 +460,13 @@ int main(int argc, char** argv)
         double refBuildSeconds = 0;
         if (!skipErrors) {
             if (stride == 0) {
-                const uint64_t n = std::max(lf.activeVoxels, ov.ran ? ov.activeVoxels : 0);
+                const uint64_t n = std::max({lf.activeVoxels, ov.ran ? ov.activeVoxels : 0, ovp.ran ? ovp.activeVoxels : 0});
                 stride = std::max<uint64_t>(1, (n + 999'999) / 1'000'000);
             }
             t0 = Clock::now();
             levelforge::ExactReference ref(mesh);
             refBuildSeconds = secondsSince(t0);
-            for (MethodResult* m : {&lf, &ov}) {
+            for (MethodResult* m : {&lf, &ov, &ovp}) {
                 if (!m->ran) continue;
                 t0 = Clock::now();
                 m->err = levelforge::compareToReference(*m->grid, ref, halfWidth, halfWidth, stride);
@@ -421,20 +475,32 @@ int main(int argc, char** argv)
         }
 
         // ------------------------------------------------------------ report
-        const double ratio = (ov.ran && lf.bestSeconds() > 0) ? ov.bestSeconds() / lf.bestSeconds()
-                                                               : std::numeric_limits<double>::quiet_NaN();
+        auto speedup = [&](const MethodResult& m) {
+            return (lf.ran && m.ran && lf.bestSeconds() > 0) ? m.bestSeconds() / lf.bestSeconds()
+                                                            : std::numeric_limits<double>::quiet_NaN();
+        };
+        const double ratio = speedup(ov), ratioPlain = speedup(ovp);
         const double M = double(std::max<uint64_t>(1, stats.microtriangles));
         const double c12 = double(stats.caseCounts[0] + stats.caseCounts[1]) / M;
         const double c3 = double(stats.caseCounts[2]) / M, c4 = double(stats.caseCounts[3]) / M;
         const std::string na = "n/a";
 
-        struct Row { std::string label, a, b; };
+        // columns: levelforge, OpenVDB (default flags), OpenVDB with DISABLE_RENORMALIZATION (when run)
+        struct Row
+        {
+            std::string label, a, b, c;
+            Row(std::string l, std::string x, std::string y, std::string z)
+                : label(std::move(l)), a(std::move(x)), b(std::move(y)), c(std::move(z)) {}
+            Row(std::string l, std::string x, std::string y) : Row(std::move(l), std::move(x), y, y) {} // c as b
+        };
         std::vector<Row> rows;
         auto both = [&](const std::string& label, auto f) {
-            rows.push_back({label, lf.ran ? f(lf) : std::string("-"), ov.ran ? f(ov) : std::string("-")});
+            rows.push_back({label, lf.ran ? f(lf) : std::string("-"), ov.ran ? f(ov) : std::string("-"),
+                            ovp.ran ? f(ovp) : std::string("-")});
         };
         both("time, s (best of " + std::to_string(repeat) + ")", [](const MethodResult& m) { return fmt(m.bestSeconds()); });
-        rows.push_back({"speed-up (OpenVDB time / levelforge time)", std::isnan(ratio) ? std::string("n/a") : fmt(ratio, 2) + "x", ""});
+        auto fmtRatio = [&](double r) { return std::isnan(r) ? std::string("n/a") : fmt(r, 2) + "x"; };
+        rows.push_back({"speed-up (OpenVDB time / levelforge time)", "", fmtRatio(ratio), fmtRatio(ratioPlain)});
         both("peak memory, MB (own process)", [](const MethodResult& m) { return fmt(m.ownProcessPeakMB, 1); });
         both("peak memory, MB (this process, run 1)", [](const MethodResult& m) { return fmt(m.peakMB(), 1); });
         both("output grid memUsage, MB", [](const MethodResult& m) { return fmt(m.gridMB, 1); });
@@ -465,15 +531,27 @@ int main(int argc, char** argv)
         if (!skipErrors)
             both("(error check time, s)", [](const MethodResult& m) { return fmt(m.errorSeconds, 1); });
 
-        size_t w0 = 0, w1 = 10;
-        for (const Row& r : rows) { w0 = std::max(w0, r.label.size()); w1 = std::max(w1, r.a.size()); }
+        const bool third = ovp.ran;
+        size_t w0 = 0, w1 = 10, w2 = 7;
+        for (const Row& r : rows) {
+            w0 = std::max(w0, r.label.size());
+            w1 = std::max(w1, r.a.size());
+            w2 = std::max(w2, r.b.size());
+        }
         std::cout << "\n" << std::left << std::setw(int(w0)) << "" << "  " << std::right << std::setw(int(w1))
-                  << "levelforge" << "  " << "OpenVDB" << "\n";
-        for (const Row& r : rows)
+                  << "levelforge" << "  " << std::setw(int(w2)) << "OpenVDB" << (third ? "  OpenVDB, no renormalization" : "")
+                  << "\n";
+        for (const Row& r : rows) {
             std::cout << std::left << std::setw(int(w0)) << r.label << "  " << std::right << std::setw(int(w1)) << r.a
-                      << "  " << r.b << "\n";
+                      << "  " << std::setw(int(w2)) << r.b;
+            if (third) std::cout << "  " << r.c;
+            std::cout << "\n";
+        }
+        if (ovp.ran)
+            std::cout << "(OpenVDB = meshToLevelSet, default flags: renormalization on; no renormalization = meshToVolume "
+                         "with MeshToVolumeFlags::DISABLE_RENORMALIZATION)\n";
         if (repeat > 1) {
-            for (const MethodResult* m : {&lf, &ov}) {
+            for (const MethodResult* m : {&lf, &ov, &ovp}) {
                 if (!m->ran) continue;
                 std::cout << "all runs, " << m->name << ": seconds";
                 for (double s : m->seconds) std::cout << " " << fmt(s);
@@ -483,6 +561,18 @@ int main(int argc, char** argv)
             }
         }
         if (!skipErrors) std::cout << "(reference BVH built in " << fmt(refBuildSeconds, 2) << " s)\n";
+        // machine-readable comparison lines (scripts/bench --smoke): best times of this process
+        {
+            std::string label = std::filesystem::path(meshPath).stem().string() + "@" + std::to_string(voxelCount) + "/hw" +
+                                levelforge_bench::shortNumber(halfWidth);
+            if (subdivide) label += "/loop" + std::to_string(subdivide);
+            if (threads > 0) label += "/t" + std::to_string(threads);
+            if (lf.ran && ov.ran)
+                std::cout << levelforge_bench::speedLine(label, lf.bestSeconds(), "openvdb_meshToLevelSet", ov.bestSeconds());
+            if (lf.ran && ovp.ran)
+                std::cout << levelforge_bench::speedLine(label + "/no-renorm", lf.bestSeconds(),
+                                                 "openvdb_meshToVolume_no_renormalization", ovp.bestSeconds());
+        }
         std::cout << std::flush;
 
         // ------------------------------------------------------------ JSON
@@ -512,8 +602,11 @@ int main(int argc, char** argv)
                << ",\n  \"half_width\": " << jnum(halfWidth) << ",\n  \"threads\": " << usedThreads
                << ",\n  \"repeat\": " << repeat << ",\n  \"error_stride\": " << (skipErrors ? 0 : stride)
                << ",\n  \"openvdb_version\": \"" << openvdb::getLibraryAbiVersionString() << "\""
+               << ",\n  \"openvdb_flags\": \"" << openVdbFlags << "\""
                << ",\n  \"speedup\": " << jnum(ratio)
+               << ",\n  \"speedup_no_renormalization\": " << jnum(ratioPlain)
                << ",\n  \"levelforge\": " << method(lf) << ",\n  \"openvdb\": " << method(ov)
+               << ",\n  \"openvdb_no_renormalization\": " << method(ovp)
                << ",\n  \"levelforge_stats\": {\"distance_evaluations\": " << stats.distanceEvaluations
                << ", \"evaluations_per_active_voxel\": " << jnum(stats.evaluationsPerActiveVoxel())
                << ", \"bound_tests\": " << stats.boundTests << ", \"candidate_voxels\": " << stats.candidateVoxels
