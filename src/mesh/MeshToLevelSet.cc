@@ -2,6 +2,7 @@
 // Mesh → exact narrow-band level set (Chang, Cha, Ihm 2008): the exact band. See MeshToLevelSet.h.
 // This translation unit holds the heavy OpenVDB template work of the main road.
 #include "detail/ProgressCheck.h"
+#include "detail/VoxelBudget.h"
 #include "detail/Timer.h"
 #include "mesh/LazyPseudoNormals.h"
 #include "mesh/TriangleHierarchy.h"
@@ -284,11 +285,21 @@ inline void boxDistances(const float* F, size_t n, size_t begin, size_t end, flo
 #endif
 }
 
+/// The long-list branch of sortNearestFirst(), out of line: inlined into callers with 8-entry
+/// arrays, GCC 12 warns (-Warray-bounds) about a branch those callers never take.
+__attribute__((noinline)) void sortNearestFirstLong(uint32_t* idx, uint32_t n, const float* d2)
+{
+    std::sort(idx, idx + n, [d2](uint32_t a, uint32_t b) { return d2[a] < d2[b] || (d2[a] == d2[b] && a < b); });
+}
+
 /// Sorts the indices idx[0, n) by d2[idx] (ties by index): insertion sort for short lists.
 inline void sortNearestFirst(uint32_t* idx, uint32_t n, const float* d2)
 {
     auto nearer = [d2](uint32_t a, uint32_t b) { return d2[a] < d2[b] || (d2[a] == d2[b] && a < b); };
-    if (n > 16) { std::sort(idx, idx + n, nearer); return; }
+    if (n > 16) {
+        sortNearestFirstLong(idx, n, d2);
+        return;
+    }
     for (uint32_t k = 1; k < n; ++k) {
         const uint32_t x = idx[k];
         uint32_t j = k;
@@ -557,11 +568,8 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     LazyPseudoNormals normals(mesh);
     std::vector<uint32_t> use;
     use.reserve(mesh.triangles.size());
-    double area = 0.0; // voxel units, for the first memory estimate
     for (uint32_t t = 0; t < mesh.triangles.size(); ++t) {
         if (normals.isDegenerate(t)) { ++stats.skippedDegenerate; continue; }
-        const Vec3I& tri = mesh.triangles[t];
-        area += 0.5 * (cellPts[tri[1]] - cellPts[tri[0]]).cross(cellPts[tri[2]] - cellPts[tri[0]]).length();
         use.push_back(t);
     }
     stats.triangles = use.size();
@@ -569,17 +577,8 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
         throw InvalidMeshError((mesh.source.empty() ? std::string("mesh") : mesh.source) +
                                ": every triangle is degenerate (zero area)");
 
-    // First memory guard, before any work that grows with the band: a band of width (ext + int)
-    // over the surface area. It cannot see a wide band's growth around a compact surface; the
-    // count of candidate leaves below can, and is checked before any output leaf is allocated.
-    const double estimate = area * (extW + intW + 2.0) + double(use.size());
-    if (options.maxVoxels > 0 && estimate > double(options.maxVoxels)) {
-        std::ostringstream os;
-        os << "the band would hold about " << uint64_t(estimate) << " voxels (surface area " << uint64_t(area)
-           << " voxels² × band " << (extW + intW) << " voxels), more than the limit of " << options.maxVoxels
-           << "; use a larger voxel size or narrower band";
-        throw ResourceLimitError(os.str());
-    }
+    // The memory guard comes after the hierarchy (whose size follows the triangles, not the
+    // band): the candidate leaves below are the band's real volume at leaf resolution.
 
     // ---- the closest-triangle hierarchy (replaces the paper's voxelization and cell lists)
     const TriangleHierarchy hierarchy(mesh, cellPts, use, interrupter);
@@ -606,22 +605,28 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     for (auto& m : maskTls) leafMask.topologyUnion(m);
     maskTls.clear();
     const uint64_t leafCount = leafMask.activeVoxelCount();
-    const double budgetVoxels = double(leafCount) * 512.0;
-    if (options.maxVoxels > 0 && budgetVoxels > double(options.maxVoxels)) {
-        std::ostringstream os;
-        os << "the band would need up to " << leafCount << " leaf nodes (" << uint64_t(budgetVoxels)
-           << " voxels within " << limit << " voxels of the surface), more than the limit of " << options.maxVoxels
-           << " voxels; use a larger voxel size or a narrower band";
-        throw ResourceLimitError(os.str());
+    {
+        // output leaves (values + mask + pointers) and each thread's scratch (frontier, box
+        // levels, block buffers: about 1 MiB at the largest frontier)
+        detail::VoxelBudgetRequest req;
+        req.operation = "mesh to level set";
+        req.what = "the band";
+        std::ostringstream d;
+        d << leafCount << " leaf nodes within " << limit << " voxels of the surface";
+        req.detail = d.str();
+        req.voxels = double(leafCount) * 512.0;
+        req.scratchBytes = double(detail::budgetThreads()) * double(1u << 20);
+        req.maxVoxels = options.maxVoxels;
+        detail::checkVoxelBudget(req);
     }
     std::vector<Coord> cand;
     cand.reserve(size_t(leafCount));
     for (auto it = leafMask.cbeginValueOn(); it; ++it) {
-        if (it.isVoxelValue()) { cand.push_back(it.getCoord() << 3); continue; }
+        if (it.isVoxelValue()) { { const Coord c = it.getCoord(); cand.push_back(Coord(c.x() * 8, c.y() * 8, c.z() * 8)); } continue; }
         const openvdb::CoordBBox bb = it.getBoundingBox();
         for (int x = bb.min().x(); x <= bb.max().x(); ++x)
             for (int y = bb.min().y(); y <= bb.max().y(); ++y)
-                for (int z = bb.min().z(); z <= bb.max().z(); ++z) cand.push_back(Coord(x, y, z) << 3);
+                for (int z = bb.min().z(); z <= bb.max().z(); ++z) cand.push_back(Coord(x * 8, y * 8, z * 8));
     }
     leafMask.clear();
     std::sort(cand.begin(), cand.end());
