@@ -134,16 +134,38 @@ public:
 
     const std::vector<Tri>& triangles() const { return mTris; }
 
-    /// Exact closest point of the surface to voxel (i, j, k): cells in growing windows whose
-    /// half-width per axis follows a world radius (so anisotropic spacing costs nothing extra),
-    /// until no cell outside the window can hold a closer point.
+    /// Exact closest point of the surface to voxel (i, j, k): first the 8 cells that share the
+    /// sample as a corner (they hold every point closer than the smallest spacing), then cells
+    /// in growing windows whose half-width per axis follows a world radius (so anisotropic
+    /// spacing costs nothing extra), each cell skipped when its box is no closer than the best
+    /// point so far, until no cell outside the window can hold a closer point.
     bool closestPoint(int i, int j, int k, Vec3d& q, double& d2) const
     {
         const Vec3d p = mF.worldPosition(i, j, k);
         const double hmin = std::min({mF.spacing[0], mF.spacing[1], mF.spacing[2]});
         const int c[3] = {i, j, k};
         d2 = std::numeric_limits<double>::infinity();
-        int prev[3] = {-1, -1, -1}; // half-widths of the window already searched (-1: none)
+        // squared world gap between the sample and cell index ci along axis a (cell ci spans
+        // samples ci..ci+1)
+        auto gap2 = [&](int a, int ci) {
+            const int g = ci >= c[a] ? ci - c[a] : c[a] - ci - 1;
+            const double w = double(g) * mF.spacing[a];
+            return w * w;
+        };
+        auto searchCell = [&](int ci, int cj, int ck) {
+            const size_t cell = cellIndex(ci, cj, ck);
+            for (uint64_t t = mCellBegin[cell]; t < mCellBegin[cell + 1]; ++t) {
+                Vec3d cp;
+                const double e2 = triDistance2(p, mTris[t], cp);
+                if (e2 < d2) { d2 = e2; q = cp; }
+            }
+        };
+        // the 8 cells around the sample
+        for (int ck = std::max(0, k - 1); ck < std::min(mCellDims[2], k + 1); ++ck)
+            for (int cj = std::max(0, j - 1); cj < std::min(mCellDims[1], j + 1); ++cj)
+                for (int ci = std::max(0, i - 1); ci < std::min(mCellDims[0], i + 1); ++ci) searchCell(ci, cj, ck);
+        if (d2 <= hmin * hmin) return true; // every closer point would lie in those 8 cells
+        int prev[3] = {1, 1, 1}; // half-widths of the window already searched
         for (double radius = 2.0 * hmin;; radius *= 1.5) {
             int hw[3];
             bool covers = true;
@@ -154,19 +176,21 @@ public:
             const int lo[3] = {std::max(0, c[0] - hw[0]), std::max(0, c[1] - hw[1]), std::max(0, c[2] - hw[2])};
             const int hi[3] = {std::min(mCellDims[0], c[0] + hw[0]), std::min(mCellDims[1], c[1] + hw[1]),
                                std::min(mCellDims[2], c[2] + hw[2])};
-            for (int ck = lo[2]; ck < hi[2]; ++ck)
-                for (int cj = lo[1]; cj < hi[1]; ++cj)
+            for (int ck = lo[2]; ck < hi[2]; ++ck) {
+                const double gz = gap2(2, ck);
+                if (gz >= d2) continue;
+                for (int cj = lo[1]; cj < hi[1]; ++cj) {
+                    const double gyz = gz + gap2(1, cj);
+                    if (gyz >= d2) continue;
                     for (int ci = lo[0]; ci < hi[0]; ++ci) {
-                        if (prev[0] >= 0 && ci >= i - prev[0] && ci < i + prev[0] && cj >= j - prev[1] &&
-                            cj < j + prev[1] && ck >= k - prev[2] && ck < k + prev[2])
+                        if (ci >= i - prev[0] && ci < i + prev[0] && cj >= j - prev[1] && cj < j + prev[1] &&
+                            ck >= k - prev[2] && ck < k + prev[2])
                             continue; // searched in an earlier window
-                        const size_t cell = cellIndex(ci, cj, ck);
-                        for (uint64_t t = mCellBegin[cell]; t < mCellBegin[cell + 1]; ++t) {
-                            Vec3d cp;
-                            const double e2 = triDistance2(p, mTris[t], cp);
-                            if (e2 < d2) { d2 = e2; q = cp; }
-                        }
+                        if (gyz + gap2(0, ci) >= d2) continue; // no closer point in this cell
+                        searchCell(ci, cj, ck);
                     }
+                }
+            }
             for (int a = 0; a < 3; ++a) prev[a] = hw[a];
             // a cell outside the window [c-hw, c+hw) on axis a is at least hw[a] samples away
             double reach = std::numeric_limits<double>::infinity();
