@@ -66,6 +66,42 @@ struct Scratch
     size_t nLevels = 0;
     std::vector<std::pair<uint32_t, double>> stack; // traversal stack: node, its box distance²
     uint64_t evaluations = 0, boundTests = 0, nodeTests = 0, candidateVoxels = 0, activeVoxels = 0;
+    struct WorkPoller* poller = nullptr; // polls the interrupter by work done (null: none)
+    uint64_t reported = 0;               // evaluations already handed to the poller
+};
+
+/// Polls the interrupter by work done, not by time: once for every kEvaluationsPerPoll exact
+/// evaluations of all threads together (well under a millisecond of work each), also from
+/// inside a leaf, so that no leaf, however many triangles it sees, runs long unpolled. Threads
+/// hand over their counts in steps of kReportStep (one atomic add per step).
+struct WorkPoller
+{
+    static constexpr uint64_t kEvaluationsPerPoll = 8192;
+    static constexpr uint64_t kReportStep = 1024;
+    openvdb::util::NullInterrupter* interrupter = nullptr;
+    size_t leaves = 1;
+    std::atomic<size_t> done{0};    // leaves finished
+    std::atomic<uint64_t> work{0};  // evaluations reported
+    std::atomic<uint64_t> polls{0}; // polls made
+    std::atomic<bool> stop{false};
+
+    int percent() const { return 20 + int(75.0 * double(done.load(std::memory_order_relaxed)) / double(leaves)); }
+    void poll()
+    {
+        if (interrupter->wasInterrupted(percent())) stop.store(true, std::memory_order_relaxed);
+    }
+    /// Reports the scratch's new evaluations and makes the polls they are owed.
+    void report(Scratch& s)
+    {
+        const uint64_t delta = s.evaluations - s.reported;
+        if (delta == 0) return;
+        s.reported = s.evaluations;
+        const uint64_t owed = (work.fetch_add(delta, std::memory_order_relaxed) + delta) / kEvaluationsPerPoll;
+        uint64_t p = polls.load(std::memory_order_relaxed);
+        while (p < owed)
+            if (polls.compare_exchange_weak(p, p + 1, std::memory_order_relaxed)) { poll(); ++p; }
+    }
+    bool stopped() const { return stop.load(std::memory_order_relaxed); }
 };
 
 struct Context
@@ -376,6 +412,10 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
     for (int bx = 0; bx < 4; ++bx)
         for (int by = 0; by < 4; ++by)
             for (int bz = 0; bz < 4; ++bz) {
+                if (s.poller && s.evaluations - s.reported >= WorkPoller::kReportStep) {
+                    s.poller->report(s);
+                    if (s.poller->stopped()) return LeafResult{};
+                }
                 if (blocks) {
                     v.p = Vec3d(origin.x() + 2 * bx + 1.0, origin.y() + 2 * by + 1.0, origin.z() + 2 * bz + 1.0);
                     v.best2 = blockReach * blockReach;
@@ -634,30 +674,33 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     stats.secondsCandidates = secondsSince(t1);
     progress_internal::check(interrupter, 20);
 
-    // ---- §4: distances, leaf by leaf (the interrupter is polled about every 20 ms)
+    // ---- §4: distances, leaf by leaf. The interrupter is polled by work (WorkPoller: once per
+    //      8192 exact evaluations, also inside a leaf) and by the clock between leaves (about
+    //      every 20 ms, for progress on leaves that need few evaluations).
     const auto t1d = Clock::now();
     std::vector<LeafResult> outLeaves(cand.size());
     tbb::enumerable_thread_specific<Scratch> scratchTls;
-    std::atomic<bool> stop{false};
-    std::atomic<size_t> done{0};
+    WorkPoller poller;
+    poller.interrupter = interrupter;
+    poller.leaves = std::max<size_t>(cand.size(), 1);
     std::atomic<int64_t> nextPoll{0};
     const int64_t pollEvery = 20'000'000; // ns
     tbb::parallel_for(tbb::blocked_range<size_t>(0, cand.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
         Scratch& s = scratchTls.local();
+        if (interrupter) s.poller = &poller;
         for (size_t i = r.begin(); i != r.end(); ++i) {
-            if (stop.load(std::memory_order_relaxed)) return;
+            if (poller.stopped()) return;
             outLeaves[i] = computeLeaf(ctx, cand[i], s, wantClosest);
-            const size_t d = done.fetch_add(1, std::memory_order_relaxed) + 1;
+            poller.done.fetch_add(1, std::memory_order_relaxed);
             if (interrupter) {
+                poller.report(s);
                 const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count();
                 int64_t due = nextPoll.load(std::memory_order_relaxed);
-                if (now >= due && nextPoll.compare_exchange_strong(due, now + pollEvery)) {
-                    if (interrupter->wasInterrupted(20 + int(75.0 * double(d) / double(cand.size())))) stop = true;
-                }
+                if (now >= due && nextPoll.compare_exchange_strong(due, now + pollEvery)) poller.poll();
             }
         }
     });
-    if (stop) throw InterruptedError("interrupted while computing distances");
+    if (poller.stopped()) throw InterruptedError("interrupted while computing distances");
     for (const Scratch& s : scratchTls) {
         stats.distanceEvaluations += s.evaluations;
         stats.boundTests += s.boundTests;
@@ -672,8 +715,10 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     // ---- assemble the tree (serial, fixed order), signed flood fill, grid
     const auto t2 = Clock::now();
     auto tree = std::make_shared<openvdb::FloatTree>(float(extW * h));
+    // addLeaf takes a leaf only once its parents exist: until it returns the leaf is still ours
+    // (a failed allocation of a parent frees it with its unique_ptr).
     for (LeafResult& l : outLeaves)
-        if (l.sdf) tree->addLeaf(l.sdf.release());
+        if (l.sdf) { tree->addLeaf(l.sdf.get()); (void)l.sdf.release(); }
     openvdb::tools::signedFloodFill(*tree);
     auto grid = openvdb::FloatGrid::create(tree);
     grid->setTransform(openvdb::math::Transform::createLinearTransform(h));
@@ -684,14 +729,14 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     if (wantClosest) {
         auto cpTree = std::make_shared<openvdb::Vec3fTree>(openvdb::Vec3f(0.0f));
         for (LeafResult& l : outLeaves)
-            if (l.cp) cpTree->addLeaf(l.cp.release());
+            if (l.cp) { cpTree->addLeaf(l.cp.get()); (void)l.cp.release(); }
         result.closestPoints = openvdb::Vec3fGrid::create(cpTree);
         result.closestPoints->setTransform(grid->transform().copy());
         result.closestPoints->setName(options.gridName + "_closest");
         result.closestPoints->setVectorType(openvdb::VEC_CONTRAVARIANT_RELATIVE);
         auto triTree = std::make_shared<openvdb::Int32Tree>(-1);
         for (LeafResult& l : outLeaves)
-            if (l.tri) triTree->addLeaf(l.tri.release());
+            if (l.tri) { triTree->addLeaf(l.tri.get()); (void)l.tri.release(); }
         result.closestTriangles = openvdb::Int32Grid::create(triTree);
         result.closestTriangles->setTransform(grid->transform().copy());
         result.closestTriangles->setName(options.gridName + "_triangle");

@@ -962,10 +962,9 @@ TEST(ExceptionInjectionPolls, AdaptiveDistanceFieldBoundsStagePolls)
 
 // The bound item 4 asks for, counted in work instead of time: at least one poll every
 // kEvaluationsPerPoll exact evaluations (well under a millisecond), also inside a leaf. The
-// distance stage of src/mesh/MeshToLevelSet.cc polls by the clock (at most once per 20 ms, and
-// only between two leaves), so a count cannot prove it and this fails (1 poll for 18416
-// evaluations); enable it once that stage polls by work done.
-TEST(ExceptionInjectionPolls, DISABLED_PathologicalMeshPollsByWork)
+// distance stage of src/mesh/MeshToLevelSet.cc polls by work done (WorkPoller) as well as by the
+// clock between leaves; a count proves the first.
+TEST(ExceptionInjectionPolls, PathologicalMeshPollsByWork)
 {
     constexpr uint64_t kEvaluationsPerPoll = 8192;
     const PathologicalRun r = runPathological();
