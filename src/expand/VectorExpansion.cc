@@ -400,7 +400,11 @@ public:
 
         // round 0: own triangle + the six neighbours' propagated triangles
         tbb::enumerable_thread_specific<std::vector<size_t>> movedTls;
+        std::atomic<bool> stop{false};
         tbb::parallel_for(tbb::blocked_range<size_t>(0, mLeaves.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
+            // one poll per block of leaves (at most 8 × 512 voxels of work)
+            if (stop.load(std::memory_order_relaxed)) return;
+            if (interrupter && interrupter->wasInterrupted()) { stop = true; return; }
             uint64_t steps = 0, nr = 0, evals = 0;
             auto& moved = movedTls.local();
             for (size_t li = r.begin(); li != r.end(); ++li) {
@@ -459,6 +463,7 @@ public:
         std::vector<uint32_t> stamp(n, 0);
         int rounds = 0;
         struct Change { size_t idx; int32_t tri; double d2; };
+        if (stop) throw InterruptedError("interrupted while refining the expanded distances");
         checkInterrupt();
         while (!changedList.empty() && rounds < 256) {
             checkInterrupt();

@@ -5,6 +5,8 @@
 #include "detail/ProgressCheck.h"
 #include "mesh/LazyPseudoNormals.h"
 
+#include <levelforge/core/Exceptions.h>
+
 #include <tbb/parallel_for.h>
 #include <tbb/task_group.h>
 
@@ -144,10 +146,14 @@ void splitPolygon(const Vec3d* poly, int n, std::vector<PieceBox>& out, int dept
 
 /// Orders the items of [b, e) so that the median splits of the hierarchy (mid = b + n/2, longest
 /// axis of the centroid box, ties by triangle id) leave every subtree's triangles contiguous.
-void partition(Item* items, size_t b, size_t e, int depth)
+/// Polls the interrupter at every range of more than 65536 items (a few dozen polls for a
+/// million triangles); a stop throws InterruptedError (the task group cancels and waits).
+void partition(Item* items, size_t b, size_t e, int depth, openvdb::util::NullInterrupter* interrupter)
 {
     const size_t n = e - b;
     if (n <= kClusterSize) return;
+    if (interrupter && n > 65536 && interrupter->wasInterrupted())
+        throw InterruptedError("interrupted while building the triangle hierarchy");
     float lo[3], hi[3];
     for (int k = 0; k < 3; ++k) { lo[k] = std::numeric_limits<float>::max(); hi[k] = -lo[k]; }
     for (size_t i = b; i < e; ++i)
@@ -162,12 +168,12 @@ void partition(Item* items, size_t b, size_t e, int depth)
     });
     if (n > 16384 && depth < 24) {
         tbb::task_group g;
-        g.run([=] { partition(items, b, mid, depth + 1); });
-        partition(items, mid, e, depth + 1);
+        g.run([=] { partition(items, b, mid, depth + 1, interrupter); });
+        partition(items, mid, e, depth + 1, interrupter);
         g.wait();
     } else {
-        partition(items, b, mid, depth + 1);
-        partition(items, mid, e, depth + 1);
+        partition(items, b, mid, depth + 1, interrupter);
+        partition(items, mid, e, depth + 1, interrupter);
     }
 }
 
@@ -229,7 +235,7 @@ TriangleHierarchy::TriangleHierarchy(const TriangleMesh& mesh, const std::vector
         }
     }
     mPieces = pieceBoxes.size();
-    partition(items.data(), 0, items.size(), 0);
+    partition(items.data(), 0, items.size(), 0, interrupter);
     progress_internal::check(interrupter);
 
     // The tree's shape depends only on the count: pre-order nodes, leaves numbered in order.

@@ -37,17 +37,26 @@ struct Chunk
 /// Merges `src`'s counts into `dst` (leaves are moved when `dst` has none at that origin).
 void mergeCounts(TreeT& dst, TreeT& src)
 {
-    std::vector<LeafT*> leaves;
-    src.stealNodes(leaves);
-    for (LeafT* leaf : leaves) {
+    // Every stolen leaf is owned until dst takes it: a failed allocation in addLeaf (a parent
+    // node) frees the rest instead of leaking them.
+    std::vector<std::unique_ptr<LeafT>> owned;
+    owned.reserve(src.leafCount());
+    {
+        std::vector<LeafT*> leaves;
+        leaves.reserve(owned.capacity());
+        src.stealNodes(leaves);
+        for (LeafT* leaf : leaves) owned.emplace_back(leaf); // capacity reserved: no throw
+    }
+    for (std::unique_ptr<LeafT>& leaf : owned) {
         if (LeafT* mine = dst.probeLeaf(leaf->origin())) {
             for (auto it = leaf->cbeginValueOn(); it; ++it) {
                 const openvdb::Index n = it.pos();
                 mine->setValueOn(n, mine->getValue(n) + *it);
             }
-            delete leaf;
+            leaf.reset();
         } else {
-            dst.addLeaf(leaf);
+            dst.addLeaf(leaf.get());
+            (void)leaf.release();
         }
     }
 }

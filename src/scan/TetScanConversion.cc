@@ -191,6 +191,8 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
     stats.voxelSize = h;
     stats.shell = o.shell;
     stats.coverage = o.coverage;
+    auto* interrupter = o.interrupter;
+    if (interrupter) interrupter->start("mesh to level set (scan conversion)");
     if (o.maxVoxels > 0) {
         // Memory guard, the one every operator uses: the leaves within the band of the surface
         // (the dilated surface's real volume, not area × width), plus each thread's dense slab.
@@ -208,8 +210,6 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
         req.maxVoxels = o.maxVoxels;
         detail::checkVoxelBudget(req);
     }
-    auto* interrupter = o.interrupter;
-    if (interrupter) interrupter->start("mesh to level set (scan conversion)");
 
     // ---- 1. shell, in index space (voxel centres at integer coordinates)
     auto t0 = Clock::now();
