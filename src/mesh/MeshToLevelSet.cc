@@ -66,6 +66,7 @@ struct Scratch
     size_t nLevels = 0;
     std::vector<std::pair<uint32_t, double>> stack; // traversal stack: node, its box distance²
     uint64_t evaluations = 0, boundTests = 0, nodeTests = 0, candidateVoxels = 0, activeVoxels = 0;
+    std::vector<std::pair<float, uint32_t>> blockList; // a 2×2×2 block's clusters: key, cluster index
     struct WorkPoller* poller = nullptr; // polls the interrupter by work done (null: none)
     uint64_t reported = 0;               // evaluations already handed to the poller
 };
@@ -116,22 +117,27 @@ struct Context
     float background;
 };
 
-/// The search state of one voxel: the best triangle so far and the pruning radius.
+/// The search state of one voxel (or of a block's centre): the best triangle so far and the
+/// pruning radii.
 struct VoxelSearch
 {
     Vec3d p;
     double best2;
     uint32_t bestT = kNone;
     TriangleClosestPoint bestCp{Vec3d(0.0), 0.0, TriangleFeature::Face};
-    double bm2;   // (sqrt(best2) + margin)²: boxes and bounds at or beyond it are pruned
+    double bm2;   // (sqrt(best2) + margin + extra)²: boxes and bounds at or beyond it are pruned
     float bm2f;
+    float em2f;   // (sqrt(best2) + margin)²: triangles with bounds below it are evaluated exactly
+    double extra = 0.0; // block search: clusters are collected this much beyond the best distance
+    std::vector<std::pair<float, uint32_t>>* collect = nullptr; // block search: where they go
     uint32_t seed = kNone;
 
     void tighten(double margin)
     {
-        const double bm = std::sqrt(best2) + margin;
+        const double em = std::sqrt(best2) + margin, bm = em + extra;
         bm2 = bm * bm;
         bm2f = float(bm2);
+        em2f = float(em * em);
     }
 };
 
@@ -149,13 +155,20 @@ inline void evaluate(const Context& ctx, VoxelSearch& v, uint32_t t, Scratch& s)
 }
 
 /// Bounds of a cluster's triangles, then exact evaluation of the survivors in increasing bound
-/// order while the bound is below the best distance.
-inline void visitCluster(const Context& ctx, const TriangleCluster& c, VoxelSearch& v, Scratch& s)
+/// order while the bound is below the best distance. In a block search (v.collect), a cluster
+/// with a bound below the enlarged radius is also listed, keyed by its smallest bound.
+__attribute__((always_inline)) inline void visitCluster(const Context& ctx, uint32_t ci, VoxelSearch& v, Scratch& s)
 {
+    const TriangleCluster& c = ctx.hierarchy.clusters()[ci];
     const Vec3d q = v.p - c.origin;
     alignas(16) float lb2[kClusterSize];
     uint32_t mask = clusterBounds(c, float(q[0]), float(q[1]), float(q[2]), v.bm2f, lb2);
     s.boundTests += c.count;
+    if (v.collect && mask) {
+        float lo = lb2[__builtin_ctz(mask)];
+        for (uint32_t m = mask; m; m &= m - 1) lo = std::min(lo, lb2[__builtin_ctz(m)]);
+        v.collect->emplace_back(std::sqrt(lo), ci);
+    }
     while (mask) {
         uint32_t pick = uint32_t(__builtin_ctz(mask));
         for (uint32_t m = mask & (mask - 1); m; m &= m - 1) {
@@ -163,7 +176,7 @@ inline void visitCluster(const Context& ctx, const TriangleCluster& c, VoxelSear
             if (lb2[lane] < lb2[pick]) pick = lane;
         }
         mask &= ~(1u << pick);
-        if (!(lb2[pick] < v.bm2f)) break;
+        if (!(lb2[pick] < v.em2f)) break;
         const uint32_t t = c.ids[pick];
         if (t == v.seed || t == v.bestT) continue; // evaluated already (a seed, or a piece of a split triangle)
         evaluate(ctx, v, t, s);
@@ -174,7 +187,6 @@ inline void visitCluster(const Context& ctx, const TriangleCluster& c, VoxelSear
 inline void searchSubtree(const Context& ctx, uint32_t root, double rootD2, VoxelSearch& v, Scratch& s)
 {
     const auto& nodes = ctx.hierarchy.nodes();
-    const auto& clusters = ctx.hierarchy.clusters();
     s.stack.clear();
     s.stack.emplace_back(root, rootD2);
     while (!s.stack.empty()) {
@@ -182,7 +194,7 @@ inline void searchSubtree(const Context& ctx, uint32_t root, double rootD2, Voxe
         s.stack.pop_back();
         if (d2 >= v.bm2) continue;
         const HierarchyNode& n = nodes[ni];
-        if (n.isLeaf()) { visitCluster(ctx, clusters[n.left], v, s); continue; }
+        if (n.isLeaf()) { visitCluster(ctx, n.left, v, s); continue; }
         const double dl = boxDistanceSqr(nodes[n.left], v.p), dr = boxDistanceSqr(nodes[n.right], v.p);
         s.nodeTests += 2;
         if (dl < dr) {
@@ -375,7 +387,6 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
     const float bg = ctx.background;
     uint32_t seed = kNone;
     VoxelSearch v;
-    const auto& clusters = ctx.hierarchy.clusters();
     // Visits boxes [first, last) (at most 8, first a multiple of 4) of `level` nearest first,
     // descending into the 8 boxes below each one closer than the search radius.
     auto descend = [&](auto&& self, size_t level, size_t first, size_t last, float qx, float qy, float qz) -> void {
@@ -399,15 +410,21 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
             }
             const uint32_t ni = s.order[i].second;
             const HierarchyNode& n = nodes[ni];
-            if (n.isLeaf()) visitCluster(ctx, clusters[n.left], v, s);
+            if (n.isLeaf()) visitCluster(ctx, n.left, v, s);
             else searchSubtree(ctx, ni, double(d2[j]), v, s);
         }
     };
     // Blocks of 2×2×2 voxels first, for narrow bands: a block with no triangle within
-    // limit + √3/2 of its centre holds no voxel within the limit (nothing to search, its signs
-    // come from the flood fill). Wide bands fill whole leaves; there the blocks would only cost.
+    // limit + r of its centre c (r = √3/2, the distance of its voxel centres) holds no voxel
+    // within the limit (nothing to search, its signs come from the flood fill). Otherwise the
+    // block's search finds the distance D of c and lists every cluster with a triangle T whose
+    // bound at c is below D + 2r: a triangle closest to a voxel v of the block has
+    // d(c, T) <= d(v, T) + r <= d(v, T_c) + r <= D + 2r, so the block's voxels search only that
+    // list, nearest first, until its bound at c minus r passes their best distance (no descent
+    // per voxel). Wide bands fill whole leaves; there the blocks would only cost.
     const bool blocks = ctx.limit < 8.0;
-    const double blockReach = ctx.limit + 0.8660254037844387 + ctx.margin;
+    constexpr double kHalfDiagonal = 0.8660254037844387 + 1e-12;
+    const double blockReach = ctx.limit + kHalfDiagonal + ctx.margin;
     const size_t top = s.nLevels - 1;
     for (int bx = 0; bx < 4; ++bx)
         for (int by = 0; by < 4; ++by)
@@ -421,11 +438,17 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
                     v.best2 = blockReach * blockReach;
                     v.bestT = kNone;
                     v.seed = seed;
+                    v.extra = 2.0 * kHalfDiagonal + ctx.margin;
+                    v.collect = &s.blockList;
+                    s.blockList.clear();
                     v.tighten(ctx.margin);
                     if (seed != kNone) evaluate(ctx, v, seed, s);
                     descend(descend, top, 0, s.levels[top].count, float(2 * bx - 3), float(2 * by - 3), float(2 * bz - 3));
+                    v.extra = 0.0;
+                    v.collect = nullptr;
                     if (v.bestT == kNone) continue;
                     seed = v.bestT;
+                    std::sort(s.blockList.begin(), s.blockList.end());
                 }
                 for (int corner = 0; corner < 8; ++corner) {
                     const int vx = 2 * bx + (corner >> 2), vy = 2 * by + ((corner >> 1) & 1), vz = 2 * bz + (corner & 1);
@@ -436,7 +459,15 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
                     v.seed = seed;
                     v.tighten(ctx.margin);
                     if (seed != kNone) evaluate(ctx, v, seed, s);
-                    descend(descend, top, 0, s.levels[top].count, float(vx - 3.5), float(vy - 3.5), float(vz - 3.5));
+                    if (blocks) {
+                        for (const auto& [key, ci] : s.blockList) {
+                            const double lo = double(key) - kHalfDiagonal - ctx.margin;
+                            if (lo > 0.0 && lo * lo >= v.bm2) break;
+                            visitCluster(ctx, ci, v, s);
+                        }
+                    } else {
+                        descend(descend, top, 0, s.levels[top].count, float(vx - 3.5), float(vy - 3.5), float(vz - 3.5));
+                    }
                 seed = v.bestT;
                 if (v.bestT == kNone) continue; // nothing within reach: sign left to the flood fill
                 const openvdb::Index offset = openvdb::Index((vx << 6) | (vy << 3) | vz);

@@ -93,7 +93,13 @@ inline double boxBoxDistanceSqr(const HierarchyNode& n, const Vec3d& lo, const V
 /// of a cluster: lb2[i], and the mask of lanes with lb2 < bm2 as the return value. The rounding
 /// error of each distance is a few ulps of (|q| + the cluster radius), which the caller's margin
 /// covers, so lb2 serves as a lower bound. SSE2 on x86-64, scalar elsewhere.
+/// On x86-64 CPUs with AVX2 an AVX2 build runs (the same operations, 8 lanes at once, no FMA:
+/// bit-identical bounds).
 uint32_t clusterBounds(const TriangleCluster& c, float qx, float qy, float qz, float bm2, float* lb2);
+/// The SSE2 (or scalar) build of clusterBounds(), for the twin test.
+uint32_t clusterBoundsBaseline(const TriangleCluster& c, float qx, float qy, float qz, float bm2, float* lb2);
+/// Whether clusterBounds() can use its AVX2 build on this CPU.
+bool clusterBoundsAvx2Available();
 
 class TriangleHierarchy
 {
