@@ -138,8 +138,12 @@ public:
     /// sample as a corner (they hold every point closer than the smallest spacing), then cells
     /// in growing windows whose half-width per axis follows a world radius (so anisotropic
     /// spacing costs nothing extra), each cell skipped when its box is no closer than the best
-    /// point so far, until no cell outside the window can hold a closer point.
-    bool closestPoint(int i, int j, int k, Vec3d& q, double& d2) const
+    /// point so far, until no cell outside the window can hold a closer point. `seed` (a triangle
+    /// index, or kNoSeed) is evaluated first, and receives the closest triangle: the previous
+    /// sample of a row gives a tight first bound, and a triangle whose box is no closer than the
+    /// best point is skipped (exact: the box distance is a lower bound; ties keep the first).
+    static constexpr uint64_t kNoSeed = ~uint64_t(0);
+    bool closestPoint(int i, int j, int k, Vec3d& q, double& d2, uint64_t& seed) const
     {
         const Vec3d p = mF.worldPosition(i, j, k);
         const double hmin = std::min({mF.spacing[0], mF.spacing[1], mF.spacing[2]});
@@ -152,19 +156,33 @@ public:
             const double w = double(g) * mF.spacing[a];
             return w * w;
         };
+        uint64_t bestT = kNoSeed;
+        if (seed != kNoSeed) {
+            d2 = triDistance2(p, mTris[seed], q);
+            bestT = seed;
+        }
         auto searchCell = [&](int ci, int cj, int ck) {
             const size_t cell = cellIndex(ci, cj, ck);
             for (uint64_t t = mCellBegin[cell]; t < mCellBegin[cell + 1]; ++t) {
+                if (t == seed) continue;
+                const Tri& tri = mTris[t];
+                double g2 = 0.0;
+                for (int a = 0; a < 3; ++a) {
+                    const double lo = std::min({tri.a[a], tri.b[a], tri.c[a]}), hi = std::max({tri.a[a], tri.b[a], tri.c[a]});
+                    const double e = std::max({lo - p[a], p[a] - hi, 0.0});
+                    g2 += e * e;
+                }
+                if (g2 >= d2) continue; // no point of this triangle is closer
                 Vec3d cp;
-                const double e2 = triDistance2(p, mTris[t], cp);
-                if (e2 < d2) { d2 = e2; q = cp; }
+                const double e2 = triDistance2(p, tri, cp);
+                if (e2 < d2) { d2 = e2; q = cp; bestT = t; }
             }
         };
         // the 8 cells around the sample
         for (int ck = std::max(0, k - 1); ck < std::min(mCellDims[2], k + 1); ++ck)
             for (int cj = std::max(0, j - 1); cj < std::min(mCellDims[1], j + 1); ++cj)
                 for (int ci = std::max(0, i - 1); ci < std::min(mCellDims[0], i + 1); ++ci) searchCell(ci, cj, ck);
-        if (d2 <= hmin * hmin) return true; // every closer point would lie in those 8 cells
+        if (d2 <= hmin * hmin) { seed = bestT; return true; } // every closer point would lie in those 8 cells
         int prev[3] = {1, 1, 1}; // half-widths of the window already searched
         for (double radius = 2.0 * hmin;; radius *= 1.5) {
             int hw[3];
@@ -197,6 +215,7 @@ public:
             for (int a = 0; a < 3; ++a) reach = std::min(reach, double(hw[a]) * mF.spacing[a]);
             if (d2 <= reach * reach || covers) break;
         }
+        seed = bestT;
         return std::isfinite(d2);
     }
 
@@ -303,7 +322,8 @@ VectorVolume subvoxelShell(const ScalarVolume& field, const SubvoxelShellOptions
     tbb::parallel_for(tbb::blocked_range<int>(0, nz), [&](const tbb::blocked_range<int>& r) {
         uint64_t ns = 0, ni = 0;
         for (int k = r.begin(); k != r.end() && !stop; ++k) {
-            for (int j = 0; j < ny; ++j)
+            for (int j = 0; j < ny; ++j) {
+                uint64_t seed = Shell::kNoSeed; // per row: the same for any thread count
                 for (int i = 0; i < nx; ++i) {
                     ni += in(i, j, k) ? 1 : 0;
                     bool inR = false;
@@ -316,12 +336,13 @@ VectorVolume subvoxelShell(const ScalarVolume& field, const SubvoxelShellOptions
                     if (!inR) continue;
                     Vec3d q;
                     double d2;
-                    if (!shell.closestPoint(i, j, k, q, d2)) continue;
+                    if (!shell.closestPoint(i, j, k, q, d2, seed)) continue;
                     const Vec3d v = q - field.worldPosition(i, j, k);
                     out(i, j, k) = ClosestVector{float(v[0] / field.spacing[0]), float(v[1] / field.spacing[1]),
                                                  float(v[2] / field.spacing[2]), float(d2)};
                     ++ns;
                 }
+            }
             if (options.interrupter && options.interrupter->wasInterrupted(-1)) stop = true;
         }
         shellCount += ns;
