@@ -70,8 +70,14 @@ public:
     static double trilinear(const double* v, const Vec3d& t, Vec3d* dvdt);
     static bool subdividedIn(const FloatLeaf& leaf, int x0, int y0, int z0, int n);
 
+    /// Longest chain of value() calls a lattice point can need (cell sizes 1, 2, 4, 8, 128
+    /// strictly growing along it; see AdfReconstruction.cc), with room to spare.
+    static constexpr int kMaxDepth = 16;
+
 private:
     Coord clampCell(const Coord& p) const;
+    double valueAt(const Coord& p, int depth);
+    double interpAt(const CellInfo& X, const Vec3d& q, Vec3d* dvdt, int depth);
     openvdb::tree::ValueAccessor<const FloatTree, false> mAcc;
     CoordBBox mDomain;
 };

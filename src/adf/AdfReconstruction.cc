@@ -4,8 +4,11 @@
 // interpolation. Shared by the builder, the queries, the level-set conversion and CSG.
 #include "adf/AdfInternal.h"
 
+#include <levelforge/core/Exceptions.h>
+
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace levelforge {
 namespace adf_internal {
@@ -76,19 +79,66 @@ Coord Reconstruction::clampCell(const Coord& p) const
 
 double Reconstruction::value(const Coord& p)
 {
-    float v;
-    if (stored(p, v)) return v;
-    const CellInfo X = cellAt(clampCell(p));
-    return interp(X, Vec3d(p.x(), p.y(), p.z()), nullptr);
+    return valueAt(p, 0);
+}
+
+// Why this ends, for any tree (not only an ADF layout): stored() holds every cell's minimum
+// corner (a 128-aligned point always, an 8-aligned point under an internal-1 node, every voxel
+// of a leaf), so a point p that is not stored is not the origin of the cell X = cellAt(p) whose
+// half-open box holds it; one of its coordinates then lies strictly inside X, so p is aligned to
+// less than X.size while every corner of X is aligned to X.size at least. The cell of a corner
+// that is not stored is therefore larger than X: sizes grow 1 < 2 < 4 < 8 < 128 along any chain
+// of calls, at most kMaxDepth deep. That needs cellAt(p) of the point itself, also on the layer
+// of storage past the domain's maximum faces: the cell of the clamped point (the in-domain cell
+// below the face) has p as a corner when p is one of its face corners, and a tree whose storage
+// on that layer is coarser than the cell (a leaf touching the maximum face; a tree that is not
+// an ADF layout) made value(p) call value(p) again without end. Only the corners with a
+// non-zero weight are read, so every corner read lies inside the domain's lattice [min, max].
+double Reconstruction::valueAt(const Coord& p, int depth)
+{
+    float stv;
+    if (stored(p, stv)) return stv;
+    if (depth >= kMaxDepth) {
+        // Unreachable by the argument above; a defensive stop rather than a stack overflow.
+        throw Error("ADF reconstruction: the value of lattice point (" + std::to_string(p.x()) + ", " +
+                    std::to_string(p.y()) + ", " + std::to_string(p.z()) + ")" +
+                    " depends on itself (the tree is not an ADF layout)");
+    }
+    bool inside = true;
+    for (int k = 0; k < 3; ++k) inside = inside && p[k] >= mDomain.min()[k] && p[k] <= mDomain.max()[k];
+    if (!inside) {
+        // Outside the lattice (a direct latticeValue() query): the trilinear extension of the
+        // in-domain cell nearest to it; its corners lie inside the lattice.
+        return interpAt(cellAt(clampCell(p)), Vec3d(p.x(), p.y(), p.z()), nullptr, depth + 1);
+    }
+    const CellInfo X = cellAt(p);
+    const int s = X.size;
+    const Coord d = p - X.origin; // each in [0, s)
+    double v[8];
+    for (int k = 0; k < 8; ++k) {
+        const int ox = (k >> 2) & 1, oy = (k >> 1) & 1, oz = k & 1;
+        // a corner past p on an axis where p lies on the cell's minimum face has weight 0
+        if ((ox && d.x() == 0) || (oy && d.y() == 0) || (oz && d.z() == 0)) {
+            v[k] = 0.0;
+            continue;
+        }
+        v[k] = valueAt(X.origin + Coord(ox * s, oy * s, oz * s), depth + 1);
+    }
+    return trilinear(v, Vec3d(d.x(), d.y(), d.z()) / double(s), nullptr);
 }
 
 double Reconstruction::interp(const CellInfo& X, const Vec3d& q, Vec3d* dvdt)
+{
+    return interpAt(X, q, dvdt, 0);
+}
+
+double Reconstruction::interpAt(const CellInfo& X, const Vec3d& q, Vec3d* dvdt, int depth)
 {
     const int s = X.size;
     double v[8];
     for (int k = 0; k < 8; ++k) {
         const Coord c = X.origin + Coord(((k >> 2) & 1) * s, ((k >> 1) & 1) * s, (k & 1) * s);
-        v[k] = value(c);
+        v[k] = valueAt(c, depth);
     }
     return trilinear(v, (q - Vec3d(X.origin.x(), X.origin.y(), X.origin.z())) / double(s), dvdt);
 }

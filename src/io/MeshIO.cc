@@ -15,6 +15,8 @@
 #include <OpenMesh/Core/System/omstream.hh>
 
 #include <mutex>
+#include <new>
+#include <stdexcept>
 
 namespace levelforge {
 
@@ -77,7 +79,9 @@ TriangleMesh readMesh(const std::string& path)
     return readMesh(path, info);
 }
 
-TriangleMesh readMesh(const std::string& path, MeshReadInfo& info)
+namespace {
+
+TriangleMesh readMeshUnguarded(const std::string& path, MeshReadInfo& info)
 {
     using namespace meshio_internal;
     info = MeshReadInfo();
@@ -145,6 +149,25 @@ TriangleMesh readMesh(const std::string& path, MeshReadInfo& info)
     mesh.source = path;
     assemble(path, importer, pre, mesh, info);
     return mesh;
+}
+
+} // namespace
+
+TriangleMesh readMesh(const std::string& path, MeshReadInfo& info)
+{
+    // The pre-scans check every count before anything is sized from it, but OpenMesh and the
+    // assembly still allocate: an allocation that fails (a mesh too large for this machine, or a
+    // reader fault the pre-scan misses) ends here as a typed error naming the file, never as a
+    // bare std::bad_alloc / std::length_error.
+    try {
+        return readMeshUnguarded(path, info);
+    } catch (const Error&) {
+        throw;
+    } catch (const std::bad_alloc&) {
+        throw ResourceLimitError(path + ": out of memory while reading the mesh");
+    } catch (const std::length_error& e) {
+        throw ResourceLimitError(path + ": out of memory while reading the mesh (" + e.what() + ")");
+    }
 }
 
 } // namespace levelforge

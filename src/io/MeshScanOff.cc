@@ -117,6 +117,12 @@ void prescanOff(const std::string& path, Prescan& out)
     const char* countNames[3] = {"vertex count", "face count", "edge count"};
     for (int i = 0; i < 3; ++i) {
         if (!tokens.next(tok)) throwInvalid(path, tokens.line(), std::string("missing ") + countNames[i]);
+        long long signedCount = 0;
+        if (parseInteger(tok, signedCount) && signedCount < 0) {
+            // OpenMesh reads the counts as unsigned int: -1 would become 4294967295.
+            throwInvalid(path, tokens.line(), std::string("negative ") + countNames[i] + " " +
+                message_internal::quotedExcerpt(tok));
+        }
         if (!parseInteger(tok, counts[i])) {
             throwInvalid(path, tokens.line(), std::string("cannot parse the ") + countNames[i] +
                 " " + message_internal::quotedExcerpt(tok) + (tok[0] == '#' ? " (OpenMesh's OFF reader does not accept "
@@ -127,7 +133,12 @@ void prescanOff(const std::string& path, Prescan& out)
     if (nV > uint64_t(std::numeric_limits<int>::max()) || nF > uint64_t(std::numeric_limits<int>::max())) {
         throwInvalid(path, tokens.line(), "vertex or face count too large");
     }
-    tokens.skipRestOfLine();
+    // No skipRestOfLine() here: OpenMesh reads the three counts with operator>> and goes on
+    // reading the same stream, so whatever follows them on their line is the first vertex (or,
+    // with no vertices, the first face's corner count). Skipping it here made the pre-scan check
+    // a different face list than the one OpenMesh then read ("OFF\n0 1 0 -2\n0\n": OpenMesh
+    // took -2 as the first face's corner count, 4294967294 as unsigned, and pushed corners until
+    // memory ran out).
 
     // At least two bytes per number (a digit and a separator; one less at the very end): a
     // header that claims more than the file can hold allocates only what the file can hold and
@@ -165,10 +176,23 @@ void prescanOff(const std::string& path, Prescan& out)
             throwInvalid(path, tokens.line(), "the file ends before face " + std::to_string(f) +
                 " of " + std::to_string(nF) + note);
         }
+        // OpenMesh reads the corner count as unsigned int and pushes that many indices, whatever
+        // the file holds: a negative count (-2 -> 4294967294) or one beyond what the rest of the
+        // file can hold (an index and a separator are at least two bytes) is refused here.
+        long long signedCorners = 0;
+        if (parseInteger(tok, signedCorners) && signedCorners < 0) {
+            throwInvalid(path, tokens.line(), "face " + std::to_string(f) + ": negative corner count " +
+                message_internal::quotedExcerpt(tok));
+        }
         uint32_t corners = 0;
         if (!parseInteger(tok, corners)) {
             throwInvalid(path, tokens.line(), "face " + std::to_string(f) +
                 ": cannot parse the corner count " + message_internal::quotedExcerpt(tok));
+        }
+        if (uint64_t(corners) > remaining / 2 + 1) {
+            throwInvalid(path, tokens.line(), "face " + std::to_string(f) + ": corner count " +
+                std::to_string(corners) + " is more than the " + std::to_string(remaining) +
+                " bytes after the header can hold");
         }
         for (uint32_t c = 0; c < corners; ++c) {
             if (!tokens.next(tok)) {

@@ -6,11 +6,13 @@
 // analytic spheres, refinement mode, determinism across thread counts, bad input.
 #include "TestUtil.h"
 
+#include "adf/AdfInternal.h"  // adf_internal::Reconstruction, stampAdfMetadata (white-box)
 #include "adf/AdfLeafPass.h" // adf_internal::setAvx2LeafPassEnabled (white-box)
 
 #include <levelforge/adf/AdaptiveDistanceField.h>
 #include <levelforge/reference/ExactReference.h>
 #include <levelforge/core/Exceptions.h>
+#include <levelforge/core/Metadata.h>
 #include <levelforge/reference/MeshShapes.h>
 #include <levelforge/mesh/MeshToLevelSet.h>
 #include <levelforge/io/VdbIO.h>
@@ -701,6 +703,153 @@ TEST(AdaptiveDistanceField, BadInput)
     opt.maxVoxels = 1000000;
     EXPECT_THROW(meshToAdaptiveDistanceField(mesh, opt), ResourceLimitError);
     EXPECT_THROW(meshToAdaptiveDistanceField(TriangleMesh{}, AdaptiveDistanceFieldOptions{}), Error);
+}
+
+namespace {
+
+/// The message of the InvalidArgumentError @p fn throws ("" and a failure when none).
+std::string invalidArgumentMessage(const std::function<void()>& fn)
+{
+    try {
+        fn();
+    } catch (const InvalidArgumentError& e) {
+        return e.what();
+    } catch (const std::exception& e) {
+        ADD_FAILURE() << "wrong exception type: " << e.what();
+        return {};
+    }
+    ADD_FAILURE() << "no exception";
+    return {};
+}
+
+/// The tree of tests/data/fuzz/adf/asan-stack-overflow-reconstruction-recursion.vdb, reduced: ADF
+/// metadata for the domain [0, 128] x [0, 128] x [0, 256], one leaf in the 128³ block at the
+/// origin, but the block above it (y = 128, the storage layer past the domain) is a level-2 tile,
+/// not an internal-1 node. The 8-aligned lattice points of that layer are then not stored, and
+/// the reconstruction used to compute value(120, 128, 0) from the 8³ cell below the face, whose
+/// corner it is: value() -> interp() -> value() without end.
+openvdb::FloatGrid::Ptr notAnAdfLayout()
+{
+    using namespace adf_internal;
+    auto grid = openvdb::FloatGrid::create(333.0f);
+    grid->setName("adf");
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(0.25));
+    FloatLeaf* leaf = grid->tree().touchLeaf(openvdb::Coord(88, 72, 120));
+    for (openvdb::Index n = 0; n < FloatLeaf::SIZE; ++n) leaf->setValueOnly(n, float(n % 7) - 3.0f);
+    leaf->setValueOn(0);
+    grid->tree().addTile(2, openvdb::Coord(0, 0, 128), 17.0f, false);
+    std::array<double, kAdfLevels> bounds{{1, 2, 3, 4, -1}};
+    stampAdfMetadata(*grid, openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(128, 128, 256)), bounds);
+    return grid;
+}
+
+} // namespace
+
+TEST(AdaptiveDistanceField, TreeThatIsNotAnAdfLayoutIsRefused)
+{
+    // the fuzz finding's shape: a leaf's neighbour on the storage layer is not subdivided
+    const openvdb::FloatGrid::Ptr bad = notAnAdfLayout();
+    std::string msg = invalidArgumentMessage([&] { AdaptiveDistanceField{openvdb::FloatGrid::ConstPtr(bad)}; });
+    EXPECT_NE(msg.find("'adf'"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("not subdivided"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("not an ADF layout"), std::string::npos) << msg;
+
+    // a valid ADF, then one rule broken at a time
+    const Built b = build(makeIcosphere(Vec3d(0.0), 1.0, 2), 0.1);
+    const openvdb::CoordBBox dom = b.adf.indexDomain();
+    {
+        // a leaf outside the domain (its 128³ block too)
+        openvdb::FloatGrid::Ptr g = b.adf.grid()->deepCopy();
+        g->tree().touchLeaf(dom.max() + openvdb::Coord(300));
+        msg = invalidArgumentMessage([&] { AdaptiveDistanceField{openvdb::FloatGrid::ConstPtr(g)}; });
+        EXPECT_NE(msg.find("outside the domain"), std::string::npos) << msg;
+    }
+    {
+        // grading: a subdivided neighbour of a block holding leaves collapsed to a level-2 tile
+        openvdb::FloatGrid::Ptr g = b.adf.grid()->deepCopy();
+        std::vector<const adf_internal::Internal1*> nodes;
+        g->tree().getNodes(nodes);
+        openvdb::Coord victim(std::numeric_limits<int>::max());
+        for (const auto* n : nodes)
+            if (n->getChildMask().isOff()) victim = n->origin();
+        ASSERT_NE(victim.x(), std::numeric_limits<int>::max()) << "no subdivided block without leaves";
+        g->tree().addTile(2, victim, 1.0f, false);
+        msg = invalidArgumentMessage([&] { AdaptiveDistanceField{openvdb::FloatGrid::ConstPtr(g)}; });
+        EXPECT_NE(msg.find("is not subdivided"), std::string::npos) << msg;
+    }
+    {
+        // a domain whose lattice reaches int overflow
+        openvdb::FloatGrid::Ptr g = b.adf.grid()->deepCopy();
+        g->insertMeta(meta::kAdfDomainMax, openvdb::Vec3IMetadata(openvdb::Vec3i(128, 128, 2147483520)));
+        msg = invalidArgumentMessage([&] { AdaptiveDistanceField{openvdb::FloatGrid::ConstPtr(g)}; });
+        EXPECT_NE(msg.find("2^30"), std::string::npos) << msg;
+    }
+    // the unbroken copy is still accepted, and a pruned one (PrunedTreeStillAnswersQueries)
+    EXPECT_NO_THROW(AdaptiveDistanceField{openvdb::FloatGrid::ConstPtr(b.adf.grid()->deepCopy())});
+}
+
+TEST(AdaptiveDistanceField, ReconstructionEndsOnAnyTree)
+{
+    // White-box: the reconstruction itself, on the tree the wrapper now refuses, terminates at
+    // every lattice point of the storage layer and of the domain's faces (the recursion is
+    // bounded by the cell sizes, not by the layout rules).
+    using namespace adf_internal;
+    const openvdb::FloatGrid::Ptr bad = notAnAdfLayout();
+    const openvdb::CoordBBox dom(openvdb::Coord(0), openvdb::Coord(128, 128, 256));
+    Reconstruction rec(bad->tree(), dom);
+    const double v = rec.value(openvdb::Coord(120, 128, 0));
+    EXPECT_TRUE(std::isfinite(v));
+    uint64_t n = 0;
+    for (int x = 0; x <= 128; ++x)
+        for (int z = 0; z <= 256; ++z) {
+            ASSERT_TRUE(std::isfinite(rec.value(openvdb::Coord(x, 128, z)))) << x << " " << z;
+            ASSERT_TRUE(std::isfinite(rec.value(openvdb::Coord(x, 0, z)))) << x << " " << z;
+            ASSERT_TRUE(std::isfinite(rec.distanceIndex(Vec3d(x, 128, z), nullptr, nullptr))) << x << " " << z;
+            n += 3;
+        }
+    // points outside the lattice (latticeValue() of any Coord) and far outside
+    for (const openvdb::Coord& c : {openvdb::Coord(-5, 300, 77), openvdb::Coord(129, 129, 257),
+                                    openvdb::Coord(std::numeric_limits<int>::max()), openvdb::Coord(std::numeric_limits<int>::min())})
+        EXPECT_TRUE(std::isfinite(rec.value(c))) << c;
+    EXPECT_GT(n, 0u);
+}
+
+TEST(AdaptiveDistanceField, SmallToleranceRefinesUpToTheDomainFaces)
+{
+    // Tolerance 0.1 voxel refines the level-1 tiles next to the domain's maximum faces into
+    // leaves; the corners of their cells on the face have no storage of their own (the layer past
+    // the face is an internal-1 node: level-1 tiles). The bound check of the refinement loop
+    // overflowed the stack there (value() of such a corner computed from the cell it is a corner
+    // of). It must end, and every query on the faces must give a finite value.
+    // one 128³ block of domain: a unit sphere 64 voxels from the origin, h = 1/10
+    AdaptiveDistanceFieldOptions opt;
+    opt.voxelSize = 0.1;
+    opt.toleranceVoxels = 0.1;
+    opt.computeBounds = false;
+    AdaptiveDistanceFieldStats stats;
+    const Vec3d centre(6.4, 6.4, 6.4);
+    const TriangleMesh mesh = makeIcosphere(centre, 1.0, 2);
+    const AdaptiveDistanceField adf = meshToAdaptiveDistanceField(mesh, opt, &stats);
+    EXPECT_GT(stats.refinedTiles, 0u);
+    const openvdb::CoordBBox dom = adf.indexDomain();
+    int leavesOnMaxFace = 0;
+    for (auto it = adf.grid()->tree().cbeginLeaf(); it; ++it)
+        for (int k = 0; k < 3; ++k)
+            if (it->origin()[k] + 8 == dom.max()[k]) { ++leavesOnMaxFace; break; }
+    EXPECT_GT(leavesOnMaxFace, 0) << "the case of the stack overflow: a leaf touching a maximum face";
+    const double h = adf.voxelSize();
+    for (int a = 0; a <= dom.max().x() - dom.min().x(); a += 1)
+        for (int c = 0; c <= dom.max().z() - dom.min().z(); c += 3) {
+            const openvdb::Coord p(dom.min().x() + a, dom.max().y(), dom.min().z() + c);
+            ASSERT_TRUE(std::isfinite(adf.latticeValue(p))) << p;
+            ASSERT_TRUE(std::isfinite(adf.distance(Vec3d(p.x(), p.y(), p.z()) * h))) << p;
+            const openvdb::Coord q(dom.max().x(), dom.min().y() + a, dom.min().z() + c);
+            ASSERT_TRUE(std::isfinite(adf.latticeValue(q))) << q;
+        }
+    // the field is still a distance field of the sphere near its surface
+    for (const Vec3d& p : {Vec3d(1.0, 0.0, 0.0), Vec3d(0.0, -1.0, 0.0), Vec3d(0.0, 0.0, 1.0)})
+        EXPECT_NEAR(adf.distance(centre + p), 0.0, 2 * h) << p;
+    EXPECT_NEAR(adf.distance(centre), -1.0, 2 * h);
 }
 
 #ifdef LEVELFORGE_TEST_ADF_OPERATORS

@@ -559,6 +559,35 @@ TEST(MeshIO, EmptyAndGarbageFilesThrowInvalidMesh)
     expectThrowWith<InvalidMeshError>([&] { readMesh(comment); }, {comment, "line 2", "comments"});
 }
 
+TEST(MeshIO, OffCountsLineIsReadAsOneStreamWithTheBody)
+{
+    // OpenMesh reads the three counts with operator>> and goes on in the same stream: what follows
+    // them on their line is the first vertex, or (no vertices) the first face's corner count.
+    const fs::path dir = scratchDir("meshio_off_counts_line");
+    const std::string onCounts = writeFile(dir, "vertex-on-counts.off", "OFF\n3 1 0 0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    const TriangleMesh m = readMesh(onCounts);
+    ASSERT_EQ(m.points.size(), 3u);
+    ASSERT_EQ(m.triangles.size(), 1u);
+    EXPECT_EQ(m.points[0], Vec3d(0, 0, 0));
+    EXPECT_EQ(m.points[2], Vec3d(0, 1, 0));
+
+    // tests/data/fuzz/off/oom-negative-face-valence.off: OpenMesh took -2 as the first face's
+    // corner count (4294967294 as unsigned) and pushed corners until memory ran out.
+    const std::string negative = writeFile(dir, "negative-valence.off", "OFF\n0 1 0 -2\n0\n");
+    expectThrowWith<InvalidMeshError>([&] { readMesh(negative); },
+                                      {negative, "line 2", "face 0", "negative corner count", "-2"});
+    // a corner count the rest of the file cannot hold, in range for OpenMesh's unsigned int
+    const std::string absurd = writeFile(dir, "absurd-valence.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4000000000 0 1 2\n");
+    expectThrowWith<InvalidMeshError>([&] { readMesh(absurd); }, {absurd, "line 6", "face 0", "corner count 4000000000"});
+    const std::string tooBig = writeFile(dir, "huge-valence.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n5000000000 0 1 2\n");
+    expectThrowWith<InvalidMeshError>([&] { readMesh(tooBig); }, {tooBig, "line 6", "face 0", "corner count"});
+    // negative header counts: OpenMesh would read -3 as 4294967293
+    const std::string negV = writeFile(dir, "negative-vertices.off", "OFF\n-3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectThrowWith<InvalidMeshError>([&] { readMesh(negV); }, {negV, "line 2", "negative vertex count"});
+    const std::string negF = writeFile(dir, "negative-faces.off", "OFF\n3 -1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectThrowWith<InvalidMeshError>([&] { readMesh(negF); }, {negF, "line 2", "negative face count"});
+}
+
 TEST(MeshIO, BinaryOff)
 {
     const fs::path dir = scratchDir("meshio_binary_off");

@@ -1010,6 +1010,97 @@ TEST(VolumeIOVdb, UnsupportedGridsAndTransformsAreRejected)
     expectError<levelforge::IoError>([&] { levelforge::readVolume(fp); }, {fp});
 }
 
+TEST(VolumeIOVdb, DenseBoxMustStayInsideTheIntRange)
+{
+    // tests/data/fuzz/vdb/ubsan-copytodense-bbox-near-int-min.vdb: two active voxels near -2^31
+    // pass the sample limit, but copyToDense() splits the box at (min + max) / 2 and overflows
+    // int (and writes outside the dense buffer).
+    openvdb::initialize();
+    const fs::path dir = scratchDir("volumeio_vdb_int_range");
+    auto far = openvdb::Int32Grid::create(0);
+    far->setName("labels");
+    far->tree().setValue(openvdb::Coord(-2013265921, -4091, 16773122), 1);
+    far->tree().setValue(openvdb::Coord(-2013265921, -4090, 16773122), 2);
+    const std::string fp = (dir / "far.vdb").string();
+    levelforge::writeGridsAtomic(fp, openvdb::GridPtrVec{far});
+    expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVolume(fp); },
+                                                {fp, "grid 'labels'", "-2013265921", "2^30"});
+    expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVdbVolume(fp); }, {fp, "grid 'labels'", "2^30"});
+
+    // inside the range, until the padding takes the box past it
+    auto edge = openvdb::FloatGrid::create(0.0f);
+    edge->setName("edge");
+    const int top = (1 << 30) - 2;
+    edge->tree().setValue(openvdb::Coord(top, 0, 0), 3.0f);
+    const std::string ep = (dir / "edge.vdb").string();
+    levelforge::writeGridsAtomic(ep, openvdb::GridPtrVec{edge});
+    levelforge::ReadVolumeOptions opt;
+    const ScalarVolume v = levelforge::readVdbVolume(ep, opt);
+    EXPECT_EQ(v.dims, openvdb::Coord(1, 1, 1));
+    EXPECT_EQ(v.data, std::vector<float>{3.0f});
+    EXPECT_EQ(v.origin, openvdb::Vec3d(top, 0, 0));
+    opt.vdbPadding = 1;
+    EXPECT_EQ(levelforge::readVdbVolume(ep, opt).dims, openvdb::Coord(3, 3, 3));
+    opt.vdbPadding = 3;
+    expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVdbVolume(ep, opt); },
+                                                {ep, "grid 'edge'", "3 voxels of padding", "2^30"});
+}
+
+TEST(VolumeIOVdb, ScalarGridWithNaNOrInfIsRejected)
+{
+    openvdb::initialize();
+    const fs::path dir = scratchDir("volumeio_vdb_nonfinite");
+    const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+    auto write = [&](const std::string& name, const openvdb::GridBase::Ptr& g) {
+        const std::string p = (dir / name).string();
+        levelforge::writeGridsAtomic(p, openvdb::GridPtrVec{g});
+        return p;
+    };
+    // a finite grid over many leaves is read as it is
+    auto good = openvdb::FloatGrid::create(1.0f);
+    good->setName("density");
+    for (int i = 0; i < 64; ++i) good->tree().setValue(openvdb::Coord(8 * i, -3 * i, i), float(i));
+    const std::string gp = write("good.vdb", good);
+    EXPECT_EQ(levelforge::readVdbScalarGrid(gp)->activeVoxelCount(), 64);
+
+    // active voxels: the first bad voxel in tree order is named, whatever the thread count
+    auto voxel = good->deepCopy();
+    voxel->tree().setValue(openvdb::Coord(400, -150, 50), nan);
+    voxel->tree().setValue(openvdb::Coord(-40, 7, 9), inf); // first leaf in tree order
+    const std::string vp = write("voxel.vdb", voxel);
+    expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVdbScalarGrid(vp); },
+                                                {vp, "grid 'density'", "active voxel (-40, 7, 9)", "non-finite"});
+    // an inactive voxel of a leaf too (OpenVDB tools read it)
+    auto inactive = good->deepCopy();
+    inactive->tree().setValueOff(openvdb::Coord(8, -3, 2), nan);
+    const std::string ip = write("inactive.vdb", inactive);
+    expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVdbScalarGrid(ip); },
+                                                {ip, "grid 'density'", "inactive voxel (8, -3, 2)", "non-finite"});
+    // an active tile (8³ at level 1)
+    auto tile = good->deepCopy();
+    tile->tree().addTile(1, openvdb::Coord(-800, 0, 0), inf, true);
+    const std::string tp = write("tile.vdb", tile);
+    expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVdbScalarGrid(tp); },
+                                                {tp, "grid 'density'", "active tile (-800, 0, 0)", "non-finite"});
+    // the background
+    auto bg = openvdb::FloatGrid::create(nan);
+    bg->setName("density");
+    bg->tree().setValue(openvdb::Coord(1, 2, 3), 1.0f);
+    const std::string bp = write("background.vdb", bg);
+    expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVdbScalarGrid(bp); },
+                                                {bp, "grid 'density'", "background"});
+    // a double that becomes Inf as float, in both readers
+    auto dbl = openvdb::DoubleGrid::create(0.0);
+    dbl->setName("precise");
+    dbl->tree().setValue(openvdb::Coord(0, 0, 0), 1.0);
+    dbl->tree().setValue(openvdb::Coord(5, 6, 7), 1e300);
+    const std::string dp = write("double.vdb", dbl);
+    expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVdbScalarGrid(dp); },
+                                                {dp, "grid 'precise'", "(5, 6, 7)", "float range"});
+    expectError<levelforge::InvalidVolumeError>([&] { levelforge::readVdbVolume(dp); },
+                                                {dp, "grid 'precise'", "(5, 6, 7)", "float range"});
+}
+
 // ============================================================================= shared data
 
 TEST(VolumeIOSharedData, CgalSkullInr)

@@ -155,7 +155,9 @@ public:
     /// @param[in] grid  an ADF grid (isAdaptiveDistanceField)
     /// @throws InvalidArgumentError if the grid is null, not an ADF, or its metadata is
     ///         inconsistent (no domain, a domain not made of whole 128³ blocks, a non-linear
-    ///         transform or non-cubic voxels)
+    ///         transform or non-cubic voxels), or its tree is not an ADF layout (leaves outside
+    ///         the domain, a block holding leaves next to one that is not subdivided, ...: one
+    ///         pass over the tree, so that no query can recurse without end)
     explicit AdaptiveDistanceField(openvdb::FloatGrid::ConstPtr grid);
 
     /// @brief False for a default-constructed (empty) ADF.

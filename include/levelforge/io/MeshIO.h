@@ -79,6 +79,8 @@ struct MeshReadInfo
 /// @throws IoError when the file is missing, unreadable or has an unsupported extension.
 /// @throws InvalidMeshError when its content is wrong (the message names the file, the element
 ///         and the value).
+/// @throws ResourceLimitError when the mesh would not fit in memory (an allocation failed while
+///         reading; the message names the file).
 TriangleMesh readMesh(const std::string& path);
 
 /// @brief As readMesh(path), and says what the file held.
@@ -86,7 +88,7 @@ TriangleMesh readMesh(const std::string& path);
 /// @param[out] info  format, counts of vertices, faces, triangulated and dropped faces, and
 ///                   whether positions are double precision
 /// @return the mesh, with mesh.source set to @p path.
-/// @throws IoError, InvalidMeshError as readMesh(path).
+/// @throws IoError, InvalidMeshError, ResourceLimitError as readMesh(path).
 TriangleMesh readMesh(const std::string& path, MeshReadInfo& info);
 
 /// @brief Writes @p mesh to @p path atomically; the format follows the extension (.obj, .off,
