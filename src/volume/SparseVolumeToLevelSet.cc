@@ -286,7 +286,11 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     t0 = Clock::now();
     const bool widen = o.method == VolumeDistanceMethod::VCVDT8;
     const double wantMax = std::max(exteriorWidth, o.fillInterior ? 3.0 : interiorWidth);
-    const double exact = widen ? std::min(1.5, wantMax) : wantMax;
+    // Up to kExactUpTo voxels the whole band is exact: measured on ch2bet (7.1 M active voxels,
+    // band 3), the exact band at 3 voxels costs less CPU (8.4 s) than the 1.5-voxel band and the
+    // widening (8.8 s), and has no VCVDT error. Wider bands: exact 1.5, then the sparse VCVDT.
+    constexpr double kExactUpTo = 3.0;
+    const double exact = (widen && wantMax > kExactUpTo) ? 1.5 : wantMax;
     const double exactExt = std::min(exact, exteriorWidth);
     const double exactInt = o.fillInterior ? exact : std::min(exact, interiorWidth);
     stats.exactBand = exact;

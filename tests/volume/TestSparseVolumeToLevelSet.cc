@@ -102,6 +102,30 @@ TEST(SparseVolumeToLevelSet, ExactEqualsTheDenseExactSubvoxelPath)
     EXPECT_GT(ls->tree().getValue(Coord(0, 0, 0)), 0.0f);
 }
 
+TEST(SparseVolumeToLevelSet, Vcvdt8UpToThreeVoxelsIsExactThroughout)
+{
+    // No width beyond 3 voxels: the whole band is exact (no widening), as with method Exact.
+    const ScalarVolume f = makeSphereField(Coord(48), Vec3d(23.4, 24.3, 22.8), 13.0);
+    const auto grid = sparseSphereField(f);
+    VolumeToLevelSetOptions o;
+    o.method = VolumeDistanceMethod::Exact;
+    o.subvoxel = true;
+    o.exteriorWidth = 3.0;
+    o.interiorWidth = 2.5;
+    const ScalarVolume dense = volumeSignedDistance(f, o);
+    o.method = VolumeDistanceMethod::VCVDT8;
+    SparseVolumeToLevelSetStats st;
+    const auto ls = sparseVolumeToLevelSet(*grid, o, &st);
+    EXPECT_EQ(st.exactBand, 3.0);
+    EXPECT_FALSE(st.widened);
+    const Diff d = compareWithDense(*ls, dense, 3.0, 2.5);
+    EXPECT_GT(d.compared, 5000u);
+    EXPECT_LE(d.max, 1e-4);
+    EXPECT_EQ(d.signErrors, 0u);
+    EXPECT_EQ(d.missing, 0u);
+    EXPECT_EQ(d.extra, 0u);
+}
+
 TEST(SparseVolumeToLevelSet, Vcvdt8WidensTheExactBandAccurately)
 {
     const ScalarVolume f = makeSphereField(Coord(64), Vec3d(31.4, 32.3, 30.8), 17.0);

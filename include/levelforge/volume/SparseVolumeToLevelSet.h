@@ -13,7 +13,9 @@
 ///     the background's (nowhere else can a constant tree region hold a crossing), one voxel
 ///     dilated; their triangles are the interpolated surface (src/detail/IsoSurfaceCells.h, the same
 ///     triangulation as the dense SubvoxelShell.h), a triangle soup in index space × voxel size;
-///  2. exact shell: the exact distance to that surface in a band of 1.5 voxels (VCVDT8; the dense
+///  2. exact shell: the exact distance to that surface in a band of 1.5 voxels (VCVDT8 with a
+///     band wider than 3 voxels; up to 3 voxels the whole band is exact, which costs no more than
+///     the 1.5-voxel shell and the widening; the dense
 ///     path's shell R is the 26-neighbourhood of the surface voxels, the same reach) with the
 ///     exact closest points and triangles (meshToLevelSetWithClosestPoints, Chang et al. 2008,
 ///     on the sparse triangle lists), each voxel signed by its own sample's side of the iso-value
@@ -59,8 +61,8 @@ struct SparseVolumeToLevelSetStats
 
 /// @brief Converts a scalar grid to a level set as described above.
 ///
-/// Uses from `options`: iso, insideBelow, method (VCVDT8: exact band of min(1.5, width) voxels
-/// then the sparse VCVDT; Exact: the exact band at the full widths — its cost grows with the
+/// Uses from `options`: iso, insideBelow, method (VCVDT8: exact band of 1.5 voxels then the
+/// sparse VCVDT, or the whole band exact when no width exceeds 3 voxels; Exact: the exact band at the full widths — its cost grows with the
 /// triangles within reach of each voxel, so wide exact bands on finely sampled surfaces are
 /// slow), exteriorWidth / interiorWidth (in `units`, voxels by default), fillInterior (with
 /// either method the inside beyond the exact band comes from the sparse VCVDT), gridName,
