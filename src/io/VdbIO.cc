@@ -133,12 +133,14 @@ openvdb::GridPtrVecPtr readGrids(const std::string& path)
         throw IoError("cannot read " + quoted(path) + ": " + errnoText(errno));
     }
 
-    // Every length field of the header, the metadata and the grid descriptors against the
-    // bytes that remain, before OpenVDB allocates anything from them (VdbHeaderCheck.h).
+    // Every length field of the header, the metadata, the grid descriptors, the transforms and
+    // the trees (node counts, masks, chunk sizes) against the bytes that remain, before OpenVDB
+    // allocates anything from them (VdbHeaderCheck.h).
     vdbio_internal::checkVdbHeader(path);
 
-    // What the pre-scan cannot see (the trees) is left to OpenVDB; an allocation it makes from
-    // a corrupt count ends here as IoError, and its messages are cut to a few hundred bytes.
+    // What the pre-scan does not decode (the leaf chunks' compressed bytes) is left to zlib and
+    // Blosc through OpenVDB; an allocation failure ends here as IoError, and its messages are cut
+    // to a few hundred bytes.
     auto memoryError = [&](const std::exception& e) {
         return IoError("cannot read " + quoted(path) + ": corrupt VDB file (OpenVDB asked for more memory than " +
                        "there is: " + dependencyText(e) + ")");
