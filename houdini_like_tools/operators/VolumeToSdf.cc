@@ -178,8 +178,12 @@ void cookSparse(OperatorArgs& args, const std::string& input, const std::string&
        << (st.widened ? ", widened by the sparse vcvdt8" : "") << ", "
        << grid->activeVoxelCount() << " active voxels in the band\n"
        << "  time: " << fmt("%.2f", seconds) << " s (surface " << fmt("%.2f", st.secondsSurface) << ", exact "
-       << fmt("%.2f", st.secondsExact) << " [hierarchy " << fmt("%.2f", st.exact.secondsHierarchy) << ", candidates "
-       << fmt("%.2f", st.exact.secondsCandidates) << ", distance " << fmt("%.2f", st.exact.secondsDistance) << "], widen "
+       << fmt("%.2f", st.secondsExact)
+       << (st.cellSearch ? std::string(" [cell search]")
+                         : " [hierarchy " + fmt("%.2f", st.exact.secondsHierarchy) + ", candidates " +
+                               fmt("%.2f", st.exact.secondsCandidates) + ", distance " +
+                               fmt("%.2f", st.exact.secondsDistance) + "]")
+       << ", widen "
        << fmt("%.2f", st.secondsWiden) << "), "
        << fmt("%.2f", secondsSince(t0)) << " s total\n";
 }

@@ -8,7 +8,11 @@
 // differ in the last bit (the crossing is interpolated from either end): a soup.
 #pragma once
 
+#include <levelforge/core/TriangleDistance.h>
 #include <levelforge/core/TriangleMesh.h>
+
+#include <algorithm>
+#include <limits>
 
 namespace levelforge::iso_surface_internal {
 
@@ -49,6 +53,44 @@ void cellTriangles(const double v[8], const Vec3d p[8], double iso, bool insideB
             out(Tri{q0, q2, q3});
         }
     }
+}
+
+/// Squared distance from p to a triangle, robust to degenerate (collinear) triangles.
+inline double triDistance2(const Vec3d& p, const Tri& t, Vec3d& closest)
+{
+    const Vec3d n = (t.b - t.a).cross(t.c - t.a);
+    const double scale = std::max({(t.b - t.a).lengthSqr(), (t.c - t.a).lengthSqr(), 1e-300});
+    if (n.lengthSqr() > 1e-24 * scale * scale) {
+        const TriangleClosestPoint cp = closestPointOnTriangle(p, t.a, t.b, t.c);
+        closest = cp.point;
+        return cp.distanceSqr;
+    }
+    double best = std::numeric_limits<double>::infinity();
+    const Vec3d* v[3] = {&t.a, &t.b, &t.c};
+    for (int e = 0; e < 3; ++e) {
+        const Vec3d& a = *v[e];
+        const Vec3d& b = *v[(e + 1) % 3];
+        const Vec3d ab = b - a;
+        const double l2 = ab.lengthSqr();
+        double s = l2 > 0.0 ? (p - a).dot(ab) / l2 : 0.0;
+        s = std::min(1.0, std::max(0.0, s));
+        const Vec3d q = a + ab * s;
+        const double d2 = (p - q).lengthSqr();
+        if (d2 < best) { best = d2; closest = q; }
+    }
+    return best;
+}
+
+/// Squared distance from p to the bounding box of t (0 inside): a lower bound of triDistance2.
+inline double triBoxDistance2(const Vec3d& p, const Tri& t)
+{
+    double g2 = 0.0;
+    for (int a = 0; a < 3; ++a) {
+        const double lo = std::min({t.a[a], t.b[a], t.c[a]}), hi = std::max({t.a[a], t.b[a], t.c[a]});
+        const double e = std::max({lo - p[a], p[a] - hi, 0.0});
+        g2 += e * e;
+    }
+    return g2;
 }
 
 } // namespace levelforge::iso_surface_internal

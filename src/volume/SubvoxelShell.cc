@@ -38,31 +38,7 @@ void checkVolume(const ScalarVolume& f)
     }
 }
 
-/// Squared distance from p to a triangle, robust to degenerate (collinear) triangles.
-double triDistance2(const Vec3d& p, const Tri& t, Vec3d& closest)
-{
-    const Vec3d n = (t.b - t.a).cross(t.c - t.a);
-    const double scale = std::max({(t.b - t.a).lengthSqr(), (t.c - t.a).lengthSqr(), 1e-300});
-    if (n.lengthSqr() > 1e-24 * scale * scale) {
-        const TriangleClosestPoint cp = closestPointOnTriangle(p, t.a, t.b, t.c);
-        closest = cp.point;
-        return cp.distanceSqr;
-    }
-    double best = std::numeric_limits<double>::infinity();
-    const Vec3d* v[3] = {&t.a, &t.b, &t.c};
-    for (int e = 0; e < 3; ++e) {
-        const Vec3d& a = *v[e];
-        const Vec3d& b = *v[(e + 1) % 3];
-        const Vec3d ab = b - a;
-        const double l2 = ab.lengthSqr();
-        double s = l2 > 0.0 ? (p - a).dot(ab) / l2 : 0.0;
-        s = std::min(1.0, std::max(0.0, s));
-        const Vec3d q = a + ab * s;
-        const double d2 = (p - q).lengthSqr();
-        if (d2 < best) { best = d2; closest = q; }
-    }
-    return best;
-}
+using iso_surface_internal::triDistance2;
 
 class Shell
 {
@@ -166,13 +142,7 @@ public:
             for (uint64_t t = mCellBegin[cell]; t < mCellBegin[cell + 1]; ++t) {
                 if (t == seed) continue;
                 const Tri& tri = mTris[t];
-                double g2 = 0.0;
-                for (int a = 0; a < 3; ++a) {
-                    const double lo = std::min({tri.a[a], tri.b[a], tri.c[a]}), hi = std::max({tri.a[a], tri.b[a], tri.c[a]});
-                    const double e = std::max({lo - p[a], p[a] - hi, 0.0});
-                    g2 += e * e;
-                }
-                if (g2 >= d2) continue; // no point of this triangle is closer
+                if (iso_surface_internal::triBoxDistance2(p, tri) >= d2) continue; // no point of it is closer
                 Vec3d cp;
                 const double e2 = triDistance2(p, tri, cp);
                 if (e2 < d2) { d2 = e2; q = cp; bestT = t; }

@@ -118,12 +118,44 @@ TEST(SparseVolumeToLevelSet, Vcvdt8UpToThreeVoxelsIsExactThroughout)
     const auto ls = sparseVolumeToLevelSet(*grid, o, &st);
     EXPECT_EQ(st.exactBand, 3.0);
     EXPECT_FALSE(st.widened);
+    EXPECT_TRUE(st.cellSearch);
     const Diff d = compareWithDense(*ls, dense, 3.0, 2.5);
     EXPECT_GT(d.compared, 5000u);
     EXPECT_LE(d.max, 1e-4);
     EXPECT_EQ(d.signErrors, 0u);
     EXPECT_EQ(d.missing, 0u);
     EXPECT_EQ(d.extra, 0u);
+}
+
+TEST(SparseVolumeToLevelSet, CellSearchAndHierarchyAgreeWithTheDensePathOnSamplesAtTheIsoValue)
+{
+    // A field quantized to steps of 0.5 (as integer-valued scans are): many samples lie exactly on
+    // the iso-value, where crossings collapse to points and cells to triangles without area. Both
+    // sparse searches (cells, up to 3 voxels; the triangle hierarchy beyond) must keep what the
+    // dense exact path keeps.
+    ScalarVolume f = makeSphereField(Coord(44), Vec3d(21.3, 22.1, 20.6), 14.5);
+    for (float& v : f.data) v = std::round(v * 2.0f) * 0.5f;
+    const auto grid = sparseSphereField(f);
+    size_t onIso = 0;
+    for (float v : f.data) onIso += v == 0.0f ? 1 : 0;
+    ASSERT_GT(onIso, 20u);
+    for (const double ext : {3.0, 4.0}) {
+        VolumeToLevelSetOptions o;
+        o.method = VolumeDistanceMethod::Exact;
+        o.subvoxel = true;
+        o.exteriorWidth = ext;
+        o.interiorWidth = 2.5;
+        const ScalarVolume dense = volumeSignedDistance(f, o);
+        SparseVolumeToLevelSetStats st;
+        const auto ls = sparseVolumeToLevelSet(*grid, o, &st);
+        EXPECT_EQ(st.cellSearch, ext <= 3.0);
+        const Diff d = compareWithDense(*ls, dense, ext, 2.5);
+        EXPECT_GT(d.compared, 5000u) << "width " << ext;
+        EXPECT_LE(d.max, 1e-4) << "width " << ext;
+        EXPECT_EQ(d.signErrors, 0u) << "width " << ext;
+        EXPECT_EQ(d.missing, 0u) << "width " << ext;
+        EXPECT_EQ(d.extra, 0u) << "width " << ext;
+    }
 }
 
 TEST(SparseVolumeToLevelSet, Vcvdt8WidensTheExactBandAccurately)

@@ -55,6 +55,8 @@ struct SparseVolumeToLevelSetStats
     uint64_t activeVoxels = 0;    ///< voxels of the result
     double exactBand = 0.0;       ///< half-width of the exact band, voxels
     bool widened = false;         ///< step 3 ran (VCVDT8 with a width beyond the exact band)
+    bool cellSearch = false;      ///< the exact band came from the search over the surface cells
+                                  ///< (bands exact throughout, at most 3 voxels; `exact` unused)
     MeshToLevelSetStats exact;    ///< the exact band's converter (stage times, evaluations)
     double secondsSurface = 0, secondsExact = 0, secondsWiden = 0;
 };
