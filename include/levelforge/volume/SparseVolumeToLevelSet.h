@@ -20,7 +20,9 @@
 ///     exact closest points and triangles (meshToLevelSetWithClosestPoints, Chang et al. 2008,
 ///     on the sparse triangle lists), each voxel signed by its own sample's side of the iso-value
 ///     (the voxel centres are the samples, so this is the inside flag of Eq. 2 — no pseudonormal
-///     is trusted on the unoriented soup), re-flood-filled;
+///     is trusted on the unoriented soup), re-flood-filled. A band exact throughout and at most
+///     3 voxels wide (no fillInterior) is instead searched over the surface cells around each
+///     voxel, as the dense shell does (no soup, no hierarchy; the same values, bit for bit);
 ///  3. widening: to the requested widths with the sparse 8-pass VCVDT over the dilated VDB
 ///     topology (docs/expansion.md, through expandLevelSet with ExpansionMethod::Vector and the
 ///     exact closest points and triangles of step 2). With VolumeDistanceMethod::Exact the exact
