@@ -421,7 +421,10 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
     // bound at c is below D + 2r: a triangle closest to a voxel v of the block has
     // d(c, T) <= d(v, T) + r <= d(v, T_c) + r <= D + 2r, so the block's voxels search only that
     // list, nearest first, until its bound at c minus r passes their best distance (no descent
-    // per voxel). Wide bands fill whole leaves; there the blocks would only cost.
+    // per voxel). For a triangle split into pieces, the cluster that counts is the one holding
+    // the piece with v's closest point x: it is in the leaf's frontier (d(v, x) < limit), its box
+    // is within |c - x| <= D + 2r of c, so it is never pruned and is listed. Wide bands fill
+    // whole leaves; there the blocks would only cost.
     const bool blocks = ctx.limit < 8.0;
     constexpr double kHalfDiagonal = 0.8660254037844387 + 1e-12;
     const double blockReach = ctx.limit + kHalfDiagonal + ctx.margin;

@@ -11,6 +11,7 @@
 #include <tbb/task_group.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <cstdlib>
@@ -218,13 +219,17 @@ void splitPolygon(const Vec3d* poly, int n, std::vector<PieceBox>& out, int dept
 /// Orders the items of [b, e) so that the median splits of the hierarchy (mid = b + n/2, longest
 /// axis of the centroid box, ties by triangle id) leave every subtree's triangles contiguous.
 /// Polls the interrupter at every range of more than 65536 items (a few dozen polls for a
-/// million triangles); a stop throws InterruptedError (the task group cancels and waits).
-void partition(Item* items, size_t b, size_t e, int depth, openvdb::util::NullInterrupter* interrupter)
+/// million triangles); a stop sets `stop` and every range returns at once (nothing throws inside
+/// the task tree: two halves throwing at once would end in std::terminate); the caller throws.
+void partition(Item* items, size_t b, size_t e, int depth, openvdb::util::NullInterrupter* interrupter,
+               std::atomic<bool>& stop)
 {
     const size_t n = e - b;
-    if (n <= kClusterSize) return;
-    if (interrupter && n > 65536 && interrupter->wasInterrupted())
-        throw InterruptedError("interrupted while building the triangle hierarchy");
+    if (n <= kClusterSize || stop.load(std::memory_order_relaxed)) return;
+    if (interrupter && n > 65536 && interrupter->wasInterrupted()) {
+        stop.store(true, std::memory_order_relaxed);
+        return;
+    }
     float lo[3], hi[3];
     for (int k = 0; k < 3; ++k) { lo[k] = std::numeric_limits<float>::max(); hi[k] = -lo[k]; }
     for (size_t i = b; i < e; ++i)
@@ -239,12 +244,12 @@ void partition(Item* items, size_t b, size_t e, int depth, openvdb::util::NullIn
     });
     if (n > 16384 && depth < 24) {
         tbb::task_group g;
-        g.run([=] { partition(items, b, mid, depth + 1, interrupter); });
-        partition(items, mid, e, depth + 1, interrupter);
+        g.run([=, &stop] { partition(items, b, mid, depth + 1, interrupter, stop); });
+        partition(items, mid, e, depth + 1, interrupter, stop);
         g.wait();
     } else {
-        partition(items, b, mid, depth + 1, interrupter);
-        partition(items, mid, e, depth + 1, interrupter);
+        partition(items, b, mid, depth + 1, interrupter, stop);
+        partition(items, mid, e, depth + 1, interrupter, stop);
     }
 }
 
@@ -306,7 +311,9 @@ TriangleHierarchy::TriangleHierarchy(const TriangleMesh& mesh, const std::vector
         }
     }
     mPieces = pieceBoxes.size();
-    partition(items.data(), 0, items.size(), 0, interrupter);
+    std::atomic<bool> stop{false};
+    partition(items.data(), 0, items.size(), 0, interrupter, stop);
+    if (stop) throw InterruptedError("interrupted while building the triangle hierarchy");
     progress_internal::check(interrupter);
 
     // The tree's shape depends only on the count: pre-order nodes, leaves numbered in order.

@@ -376,6 +376,7 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     // exact 1.5, then the sparse VCVDT. A band that is exact throughout and no wider than
     // kExactUpTo is searched over the surface cells (cellSearchBand), not the triangle hierarchy.
     constexpr double kExactUpTo = 3.0;
+    static_assert(kExactUpTo <= 7.0, "cellSearchBand looks up the 27 cell leaves around a leaf: reach R + 1 <= 8");
     const bool widen = o.method == VolumeDistanceMethod::VCVDT8;
     const double wantMax = std::max(exteriorWidth, o.fillInterior ? 3.0 : interiorWidth);
     const double exact = (widen && wantMax > kExactUpTo) ? 1.5 : wantMax;
