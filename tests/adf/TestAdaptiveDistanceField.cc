@@ -411,7 +411,9 @@ TEST(AdaptiveDistanceField, ContinuousAcrossLevels)
             worstGradJump = std::max(worstGradJump, (b.adf.gradient(a) - b.adf.gradient(c)).length());
         }
     }
-    EXPECT_GT(levelChanges, 100);
+    // enough crossings for the check to mean something: 104 (GCC 12 Release) and 90 (clang 14
+    // ASan) of the 40000 probes cross a level change; the builds refine a few cells differently
+    EXPECT_GT(levelChanges, 60);
     EXPECT_LT(worst, 1e-5) << "jump across a cell face, voxels";
     std::printf("  %d level changes crossed, largest jump %.2e voxels (gradient jump %.3f)\n", levelChanges, worst, worstGradJump);
     // gradient: |∇d| ≈ 1 near the surface, pointing outward on a sphere
