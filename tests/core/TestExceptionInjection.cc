@@ -75,12 +75,14 @@
 // malloc/free, so that new and delete always match; the aligned forms stay the runtime's own.
 // Not under AddressSanitizer: the replacement would hide its new/delete checks from the whole
 // test binary, and OpenVDB leaks when an allocation fails inside a tree copy (InternalNode's
-// DeepCopy / TopologyCopy constructors), which LeakSanitizer would report at exit.
+// DeepCopy / TopologyCopy constructors), which LeakSanitizer would report at exit. Not under
+// ThreadSanitizer either: its runtime defines operator new/delete itself (a second definition
+// does not link).
 
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 #define LF_ALLOCATION_INJECTION 0
 #elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
 #define LF_ALLOCATION_INJECTION 0
 #endif
 #endif
