@@ -651,8 +651,36 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
         throw InvalidMeshError((mesh.source.empty() ? std::string("mesh") : mesh.source) +
                                ": every triangle is degenerate (zero area)");
 
-    // The memory guard comes after the hierarchy (whose size follows the triangles, not the
-    // band): the candidate leaves below are the band's real volume at leaf resolution.
+    // The main memory guard comes after the hierarchy: the candidate leaves below are the band's
+    // real volume at leaf resolution. But the hierarchy splits triangles longer than 8 cells
+    // into pieces, so its size follows the triangles' extent in cells too: first a guard that
+    // needs no hierarchy, from a lower bound of the band (the band of the largest triangle alone,
+    // 2 · limit · its area) and the pieces' memory (about 72 bytes for each 8 × 8 cells of a long
+    // triangle's two largest extents).
+    {
+        double largestBand = 0.0, pieceBytes = 0.0;
+        for (uint32_t t : use) {
+            const Vec3I& tri = mesh.triangles[t];
+            const Vec3d& a = cellPts[tri[0]];
+            const Vec3d& b = cellPts[tri[1]];
+            const Vec3d& c = cellPts[tri[2]];
+            largestBand = std::max(largestBand, 2.0 * limit * 0.5 * (b - a).cross(c - a).length());
+            double e[3];
+            for (int k = 0; k < 3; ++k) e[k] = std::max({a[k], b[k], c[k]}) - std::min({a[k], b[k], c[k]});
+            std::sort(e, e + 3);
+            if (e[2] > 8.0) pieceBytes += 72.0 * std::ceil(e[2] / 8.0) * std::ceil(std::max(e[1], 1.0) / 8.0);
+        }
+        detail::VoxelBudgetRequest req;
+        req.operation = "mesh to level set";
+        req.what = "the band";
+        std::ostringstream d;
+        d << "at least the band of its largest triangle, within " << limit << " voxels of it";
+        req.detail = d.str();
+        req.voxels = largestBand;
+        req.scratchBytes = pieceBytes;
+        req.maxVoxels = options.maxVoxels;
+        detail::checkVoxelBudget(req);
+    }
 
     // ---- the closest-triangle hierarchy (replaces the paper's voxelization and cell lists)
     const TriangleHierarchy hierarchy(mesh, cellPts, use, interrupter);

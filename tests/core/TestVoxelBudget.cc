@@ -139,3 +139,22 @@ TEST(VoxelBudget, EveryMeshOperatorRefusesAWideBandAroundACompactSurfaceTheSameW
         EXPECT_NE(m.find("more than the limit of"), std::string::npos) << m;
     }
 }
+
+TEST(VoxelBudget, AHugeTriangleIsRefusedBeforeTheHierarchySplitsIt)
+{
+    // One triangle 10^6 voxels long: the hierarchy would split it into ~10^10 pieces of 8 cells
+    // before the band's leaf count is known. The first guard refuses it from the triangle alone.
+    TriangleMesh m;
+    m.points = {Vec3d(0.0), Vec3d(1.0, 0.0, 0.0), Vec3d(0.0, 1.0, 0.0)};
+    m.triangles = {Vec3I(0, 1, 2)};
+    MeshToLevelSetOptions o;
+    o.voxelSize = 1e-6;
+    try {
+        meshToLevelSet(m, o);
+        FAIL() << "no error";
+    } catch (const ResourceLimitError& e) {
+        const std::string msg = e.what();
+        EXPECT_NE(msg.find("largest triangle"), std::string::npos) << msg;
+        EXPECT_NE(msg.find("working memory"), std::string::npos) << msg;
+    }
+}
