@@ -110,6 +110,21 @@ int budgetThreads()
     return std::max(1, tbb::this_task_arena::max_concurrency());
 }
 
+void checkBandLeafBudget(const std::string& operation, uint64_t leaves, double width, double scratchBytes,
+                         uint64_t maxVoxels)
+{
+    VoxelBudgetRequest req;
+    req.operation = operation;
+    req.what = "the band";
+    std::ostringstream d;
+    d << leaves << " leaf nodes within " << width << " voxels of the surface";
+    req.detail = d.str();
+    req.voxels = double(leaves) * 512.0;
+    req.scratchBytes = scratchBytes;
+    req.maxVoxels = maxVoxels;
+    checkVoxelBudget(req);
+}
+
 double budgetVoxels(const VoxelBudgetRequest& r)
 {
     return r.voxels + std::max(0.0, r.scratchBytes) / 4.0;

@@ -55,6 +55,11 @@ struct VoxelBudgetRequest
     std::string remedy = "use a larger voxel size or a narrower band";
 };
 
+/// @brief checkVoxelBudget() for a band counted in leaves by bandLeafCount(): "<operation>: the
+/// band would hold up to N voxels (L leaf nodes within W voxels of the surface) ...".
+void checkBandLeafBudget(const std::string& operation, uint64_t leaves, double width, double scratchBytes,
+                         uint64_t maxVoxels);
+
 /// @brief Voxels' worth (4 bytes each) of output plus scratch: what is compared with maxVoxels.
 double budgetVoxels(const VoxelBudgetRequest& r);
 

@@ -707,20 +707,10 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     for (auto& m : maskTls) leafMask.topologyUnion(m);
     maskTls.clear();
     const uint64_t leafCount = leafMask.activeVoxelCount();
-    {
-        // output leaves (values + mask + pointers) and each thread's scratch (frontier, box
-        // levels, block buffers: about 1 MiB at the largest frontier)
-        detail::VoxelBudgetRequest req;
-        req.operation = "mesh to level set";
-        req.what = "the band";
-        std::ostringstream d;
-        d << leafCount << " leaf nodes within " << limit << " voxels of the surface";
-        req.detail = d.str();
-        req.voxels = double(leafCount) * 512.0;
-        req.scratchBytes = double(detail::budgetThreads()) * double(1u << 20);
-        req.maxVoxels = options.maxVoxels;
-        detail::checkVoxelBudget(req);
-    }
+    // output leaves (values + mask + pointers) and each thread's scratch (frontier, box levels,
+    // block buffers: about 1 MiB at the largest frontier)
+    detail::checkBandLeafBudget("mesh to level set", leafCount, limit,
+                                double(detail::budgetThreads()) * double(1u << 20), options.maxVoxels);
     std::vector<Coord> cand;
     cand.reserve(size_t(leafCount));
     for (auto it = leafMask.cbeginValueOn(); it; ++it) {

@@ -199,16 +199,9 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
         std::vector<Vec3d> cellPts(mMesh.points.size());
         for (size_t i = 0; i < cellPts.size(); ++i) cellPts[i] = mMesh.points[i] / h + Vec3d(0.5);
         const uint64_t leaves = detail::bandLeafCount(cellPts, mMesh.triangles, {}, eps, o.interrupter);
-        detail::VoxelBudgetRequest req;
-        req.operation = "mesh to level set (scan conversion)";
-        req.what = "the band";
-        std::ostringstream d;
-        d << leaves << " leaf nodes within " << eps << " voxels of the surface";
-        req.detail = d.str();
-        req.voxels = double(leaves) * 512.0;
-        req.scratchBytes = double(detail::budgetThreads()) * double(o.slabDepth) * o.slabWidth * o.slabWidth * 8.0;
-        req.maxVoxels = o.maxVoxels;
-        detail::checkVoxelBudget(req);
+        detail::checkBandLeafBudget("mesh to level set (scan conversion)", leaves, eps,
+                                    double(detail::budgetThreads()) * double(o.slabDepth) * o.slabWidth * o.slabWidth * 8.0,
+                                    o.maxVoxels);
     }
 
     // ---- 1. shell, in index space (voxel centres at integer coordinates)

@@ -139,13 +139,16 @@ struct KeyHash
 /// no two corners the same vertex after welding (positions rounded to 1/weldScale), and a
 /// non-zero normal (the hierarchy skips zero-area triangles). A sample exactly at the iso-value
 /// collapses its crossings to one point: no surface there.
+/// The weld key of a vertex: its position rounded to 1/weldScale.
+inline std::array<int64_t, 3> weldKey(const Vec3d& p, double weldScale)
+{
+    return {int64_t(std::llround(p[0] * weldScale)), int64_t(std::llround(p[1] * weldScale)),
+            int64_t(std::llround(p[2] * weldScale))};
+}
+
 inline bool hasArea(const iso_surface_internal::Tri& t, double weldScale)
 {
-    auto key = [&](const Vec3d& p) {
-        return std::array<int64_t, 3>{int64_t(std::llround(p[0] * weldScale)), int64_t(std::llround(p[1] * weldScale)),
-                                      int64_t(std::llround(p[2] * weldScale))};
-    };
-    const auto a = key(t.a), b = key(t.b), c = key(t.c);
+    const auto a = weldKey(t.a, weldScale), b = weldKey(t.b, weldScale), c = weldKey(t.c, weldScale);
     if (a == b || b == c || a == c) return false;
     return (t.b - t.a).cross(t.c - t.a).lengthSqr() > 0.0;
 }
@@ -521,8 +524,7 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
         soup.triangles.reserve(n);
         const double q = weldScale;
         auto vertex = [&](const Vec3d& p) {
-            const std::array<int64_t, 3> key = {int64_t(std::llround(p[0] * q)), int64_t(std::llround(p[1] * q)),
-                                                int64_t(std::llround(p[2] * q))};
+            const std::array<int64_t, 3> key = weldKey(p, q);
             auto [it, added] = weld.emplace(key, uint32_t(soup.points.size()));
             if (added) soup.points.push_back(p);
             return it->second;
