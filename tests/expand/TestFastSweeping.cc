@@ -17,6 +17,7 @@
 
 #include <tbb/global_control.h>
 
+#include <atomic>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -508,7 +509,7 @@ TEST(FastSweeping, InterrupterStopsCleanly)
 {
     struct StopAt : openvdb::util::NullInterrupter
     {
-        int calls = 0;
+        std::atomic<int> calls{0}; // polled from TBB workers too
         bool wasInterrupted(int) override { return ++calls > 3; }
     } stop;
     auto band = exactBand(makeTorusKnot(), 60);

@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -36,7 +37,7 @@ class CountingInterrupter : public openvdb::util::NullInterrupter
 public:
     explicit CountingInterrupter(int stopAfter) : mStopAfter(stopAfter) {}
     bool wasInterrupted(int) override { return ++mCalls > mStopAfter; }
-    int mCalls = 0;
+    std::atomic<int> mCalls{0}; // polled from TBB workers too
     int mStopAfter;
 };
 

@@ -20,6 +20,7 @@
 #include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -497,7 +498,8 @@ TEST(VectorDistanceTransform, InterruptionLeavesWholeVectors)
     const VectorVolume seeds = initVectorVolume(features);
     struct StopAt : openvdb::util::NullInterrupter
     {
-        int calls = 0, at = 0;
+        std::atomic<int> calls{0}; // polled from the lanes too
+        int at = 0;
         bool wasInterrupted(int) override { return ++calls >= at; }
     };
     for (VectorTransformMethod m : kMethods)
