@@ -9,6 +9,7 @@
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 #include <OpenMesh/Tools/Subdivider/Uniform/LoopT.hh>
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -24,9 +25,13 @@ using OMesh = OpenMesh::TriMesh_ArrayKernelT<DoubleTraits>;
 inline levelforge::TriangleMesh loopSubdivide(const levelforge::TriangleMesh& in, int levels)
 {
     OMesh om;
-    std::vector<OMesh::VertexHandle> vh;
-    vh.reserve(in.points.size());
-    for (const auto& p : in.points) vh.push_back(om.add_vertex(OMesh::Point(p[0], p[1], p[2])));
+    // only the vertices a face uses: LoopT gives an isolated vertex (valence 0) NaN coordinates
+    std::vector<uint8_t> used(in.points.size(), 0);
+    for (const auto& t : in.triangles)
+        for (int k = 0; k < 3; ++k) used[t[k]] = 1;
+    std::vector<OMesh::VertexHandle> vh(in.points.size());
+    for (size_t i = 0; i < in.points.size(); ++i)
+        if (used[i]) vh[i] = om.add_vertex(OMesh::Point(in.points[i][0], in.points[i][1], in.points[i][2]));
     size_t rejected = 0;
     for (const auto& t : in.triangles) {
         if (!om.add_face(vh[t[0]], vh[t[1]], vh[t[2]]).is_valid()) ++rejected;

@@ -101,14 +101,20 @@ void cookMeshToSdf(OperatorArgs& args)
     for (const std::string& warning : validation.warnings()) {
         err << "levelforge: warning: " << warning << "\n";
     }
-    if (!validation.closed()) {
-        err << "levelforge: warning: " << (mesh.source.empty() ? input : mesh.source)
-            << ": the mesh is not closed; inside/outside is the pseudonormal's verdict and may be "
-               "wrong away from the surface\n";
-    }
-
     MeshToSdfOptions options;
     readGridParams(args, options);
+    options.sign = signModeFromString(args.getString("sign"));
+    options.fillInterior = args.getBool("fill-interior");
+    options.windingAccuracy = args.getFloat("winding-accuracy");
+    options.validation = &validation;
+    const bool pseudonormalOnOpen = !validation.closed() &&
+        (options.sign == SignMode::Pseudonormal ||
+         (options.sign == SignMode::Auto && args.getString("method") == "scan"));
+    if (pseudonormalOnOpen) {
+        err << "levelforge: warning: " << (mesh.source.empty() ? input : mesh.source)
+            << ": the mesh is not closed; inside/outside is the pseudonormal's verdict and may be "
+               "wrong away from the surface (--sign winding signs it by the winding number)\n";
+    }
     options.method = bandMethodFromString(args.getString("method"));
     options.expansion = expansionFromString(args.getString("expansion"));
     options.exactBandVoxels = args.getFloat("exact-band");
@@ -136,9 +142,21 @@ void cookMeshToSdf(OperatorArgs& args)
         << fmt("%g", stats.interiorBandVoxels) << " voxels inside\n"
         << "  mesh: " << withThousands(mesh.triangleCount()) << " triangles, "
         << withThousands(mesh.vertexCount()) << " vertices\n"
+        << "  sign: " << toString(stats.sign) << " (" << stats.signReason << ")"
+        << (options.fillInterior ? ", interior filled" : "") << "\n"
         << "  time: " << fmt("%.2f", convertSeconds) << " s conversion, "
         << fmt("%.2f", totalSeconds) << " s total\n";
     if (report && options.method == BandMethod::Chang) printStats(out, stats.band);
+    if (report && stats.sign == SignMode::Winding && options.method == BandMethod::Chang) {
+        const MeshToLevelSetStats& b = stats.band;
+        out << "  winding number: " << withThousands(b.windingEvaluations) << " evaluations for "
+            << withThousands(b.windingGroups) << " groups of voxels and tiles ("
+            << withThousands(b.windingIndividual) << " evaluated alone), " << withThousands(b.currentEdges)
+            << " boundary-current edges, " << withThousands(b.insideTiles) << " inside tiles; build "
+            << fmt("%.3f", b.secondsWinding) << " s\n";
+    }
+    if (report && options.fillInterior)
+        out << "  fill interior: " << withThousands(stats.filledVoxels) << " voxels activated (tiles by volume)\n";
     if (report && options.method == BandMethod::Scan) printScanStats(out, stats.scan);
 }
 
@@ -151,9 +169,12 @@ LEVELFORGE_REGISTER_OPERATOR(
         .description(
             "Reads a mesh (OBJ, PLY, STL, OFF, ... or builtin:torus-knot, builtin:sphere,\n"
             "builtin:box), checks it, computes the exact signed distance of every voxel in the\n"
-            "band (Chang et al. 2008; sign from angle-weighted pseudonormals) and writes a\n"
-            "level-set FloatGrid to a .vdb file (Blosc, written atomically: on failure no\n"
-            "output file appears). Give --voxel-size or --voxel-count, not both.")
+            "band (Chang et al. 2008) and writes a level-set FloatGrid to a .vdb file (Blosc,\n"
+            "written atomically: on failure no output file appears). The sign (--sign auto):\n"
+            "angle-weighted pseudonormals for closed, consistently oriented meshes, the\n"
+            "generalized winding number (|w| > 1/2 is inside; fast winding number, Barill et\n"
+            "al. 2018) for open, broken or self-intersecting ones; --sign unsigned writes the\n"
+            "unsigned distance (not a level set). Give --voxel-size or --voxel-count, not both.")
         .input("mesh", "Triangle mesh file, or builtin:torus-knot | builtin:sphere | builtin:box")
         .output("output", ".vdb file to write")
         .params(gridParams(meshGridParams()))
@@ -189,6 +210,26 @@ LEVELFORGE_REGISTER_OPERATOR(
                            "--method scan: a voxel is covered when its cell, not only its centre, "
                            "meets a tetrahedron (more rasterized voxels; closes sub-voxel gaps of "
                            "paper shells)"))
+        .param(Param::choice("sign", "Sign",
+                             "auto: pseudonormal when the mesh is closed, consistently oriented and no part "
+                             "is inside out (or with --method scan or --expansion sweep), winding "
+                             "otherwise; pseudonormal: the angle-weighted pseudonormal of the closest "
+                             "feature (exact for closed meshes); winding: inside where the generalized "
+                             "winding number |w| > 1/2 (holes, cracks, interpenetrating or inverted parts; "
+                             "Houdini's Preserve Holes; not with --method scan or --expansion sweep); "
+                             "unsigned: the unsigned distance of any surface (grid class unknown, not a "
+                             "level set; band = --exterior-band)",
+                             {"auto", "pseudonormal", "winding", "unsigned"})
+                   .defaultValue("auto"))
+        .param(Param::flag("fill-interior", "Fill Interior",
+                           "Every voxel inside the surface is active and negative: exact distances in "
+                           "the band, -background deeper (active tiles where a whole tile is inside). "
+                           "Not with --sign unsigned"))
+        .param(Param::floating("winding-accuracy", "Winding Accuracy",
+                               "--sign winding: the fast winding number's beta (clusters farther than "
+                               "beta times their radius use their expansion; larger: more exact, slower)")
+                   .defaultValue(2.0)
+                   .range(1.0, 100.0, Bound::Exclusive))
         .param(Param::flag("quiet", "Quiet", "Print no progress on stderr"))
         .param(Param::flag("report", "Report",
                            "Print the mesh validation summary and conversion statistics"))
@@ -197,6 +238,8 @@ LEVELFORGE_REGISTER_OPERATOR(
                  "--exterior-band 5 --interior-band 5")
         .example("levelforge mesh-to-sdf bunny.obj bunny.vdb --exterior-band 60 --expansion sweep")
         .example("levelforge mesh-to-sdf bunny.obj bunny.vdb --exterior-band 60 --expansion vector")
+        .example("levelforge mesh-to-sdf scan.obj scan.vdb --voxel-count 512 --sign winding --fill-interior")
+        .example("levelforge mesh-to-sdf cloth.obj cloth_udf.vdb --voxel-size 0.01 --sign unsigned")
         .cook(cookMeshToSdf));
 
 } // namespace levelforge::ops

@@ -4,8 +4,8 @@
 #include "detail/ProgressCheck.h"
 #include "detail/VoxelBudget.h"
 #include "detail/Timer.h"
-#include "mesh/LazyPseudoNormals.h"
-#include "mesh/TriangleHierarchy.h"
+#include "mesh/MeshToLevelSetInternal.h"
+#include "mesh/WindingSignInternal.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/mesh/MeshToLevelSet.h>
@@ -13,7 +13,9 @@
 #include <levelforge/mesh/MicrotriangleVoxelizer.h>
 #include <levelforge/core/Progress.h>
 #include <levelforge/core/TriangleDistance.h>
+#include <levelforge/mesh/FastWindingNumber.h>
 
+#include <openvdb/tools/Prune.h>
 #include <openvdb/tools/SignedFloodFill.h>
 
 #include <tbb/enumerable_thread_specific.h>
@@ -29,93 +31,11 @@
 #include <limits>
 #include <memory>
 #include <sstream>
+#include <cstdio>
+#include <cstdlib>
 
 namespace levelforge {
-
 namespace meshtols_internal {
-
-using openvdb::Coord;
-using FloatLeaf = openvdb::FloatTree::LeafNodeType;
-using Vec3fLeaf = openvdb::Vec3fTree::LeafNodeType;
-using Int32Leaf = openvdb::Int32Tree::LeafNodeType;
-using detail::Clock;
-using detail::secondsSince;
-using namespace mesh_internal;
-
-constexpr uint32_t kNone = kNoTriangle;
-constexpr size_t kMaxFlat = 4096;   // clusters a leaf lists flat, at most
-constexpr size_t kMaxFrontier = 32; // subtrees a leaf's voxels start their search from, when more
-
-/// Per-thread scratch reused for every leaf: no per-voxel allocation.
-struct Scratch
-{
-    std::vector<uint32_t> front, next;             // the leaf's frontier of hierarchy nodes
-    std::vector<std::pair<double, uint32_t>> order; // frontier sorted by distance to the leaf centre
-    std::vector<uint32_t> near;                     // per voxel: the frontier entries within reach
-    std::vector<float> fd2;                         // per voxel: their squared distances
-    // The frontier's boxes and an 8-ary tree over them: level 0 holds the entries' boxes, level
-    // k + 1 the union of 8 consecutive boxes of level k, up to a level of at most 8 boxes. Each
-    // level is 6 SoA arrays of `stride` floats (a multiple of 8, padded with far boxes),
-    // relative to the leaf centre.
-    struct Level
-    {
-        std::vector<float> box;
-        size_t count = 0, stride = 0;
-    };
-    std::vector<Level> levels;
-    size_t nLevels = 0;
-    std::vector<std::pair<uint32_t, double>> stack; // traversal stack: node, its box distance²
-    uint64_t evaluations = 0, boundTests = 0, nodeTests = 0, candidateVoxels = 0, activeVoxels = 0;
-    std::vector<std::pair<float, uint32_t>> blockList; // a 2×2×2 block's clusters: key, cluster index
-    struct WorkPoller* poller = nullptr; // polls the interrupter by work done (null: none)
-    uint64_t reported = 0;               // evaluations already handed to the poller
-};
-
-/// Polls the interrupter by work done, not by time: once for every kEvaluationsPerPoll exact
-/// evaluations of all threads together (well under a millisecond of work each), also from
-/// inside a leaf, so that no leaf, however many triangles it sees, runs long unpolled. Threads
-/// hand over their counts in steps of kReportStep (one atomic add per step).
-struct WorkPoller
-{
-    static constexpr uint64_t kEvaluationsPerPoll = 8192;
-    static constexpr uint64_t kReportStep = 1024;
-    openvdb::util::NullInterrupter* interrupter = nullptr;
-    size_t leaves = 1;
-    std::atomic<size_t> done{0};    // leaves finished
-    std::atomic<uint64_t> work{0};  // evaluations reported
-    std::atomic<uint64_t> polls{0}; // polls made
-    std::atomic<bool> stop{false};
-
-    int percent() const { return 20 + int(75.0 * double(done.load(std::memory_order_relaxed)) / double(leaves)); }
-    void poll()
-    {
-        if (interrupter->wasInterrupted(percent())) stop.store(true, std::memory_order_relaxed);
-    }
-    /// Reports the scratch's new evaluations and makes the polls they are owed.
-    void report(Scratch& s)
-    {
-        const uint64_t delta = s.evaluations - s.reported;
-        if (delta == 0) return;
-        s.reported = s.evaluations;
-        const uint64_t owed = (work.fetch_add(delta, std::memory_order_relaxed) + delta) / kEvaluationsPerPoll;
-        uint64_t p = polls.load(std::memory_order_relaxed);
-        while (p < owed)
-            if (polls.compare_exchange_weak(p, p + 1, std::memory_order_relaxed)) { poll(); ++p; }
-    }
-    bool stopped() const { return stop.load(std::memory_order_relaxed); }
-};
-
-struct Context
-{
-    const TriangleMesh& mesh;
-    const std::vector<Vec3d>& cellPts; // mesh points in cell space
-    const TriangleHierarchy& hierarchy;
-    const LazyPseudoNormals& normals;
-    double voxelSize;
-    double extW, intW, limit, limit2;
-    double margin; // cells: covers the single-precision rounding of the cluster bounds
-    float background;
-};
 
 /// The search state of one voxel (or of a block's centre): the best triangle so far and the
 /// pruning radii.
@@ -359,13 +279,6 @@ inline void sortNearestFirst(uint32_t* idx, uint32_t n, const float* d2)
 /// Fills one output leaf with origin `origin`; returns nullptr if no voxel is active.
 // cpOut / triOut (optional, together): receive leaves of closest-point offsets (voxel units) and
 // closest-triangle indices for the active voxels.
-struct LeafResult
-{
-    std::unique_ptr<FloatLeaf> sdf;
-    std::unique_ptr<Vec3fLeaf> cp;
-    std::unique_ptr<Int32Leaf> tri;
-};
-
 LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool wantClosest)
 {
     LeafResult res;
@@ -385,6 +298,8 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
     }
     uint64_t active = 0;
     const float bg = ctx.background;
+    const bool pseudo = ctx.sign == SignMode::Pseudonormal;
+    if (!pseudo) std::fill(s.vd, s.vd + 512, -1.0);
     uint32_t seed = kNone;
     VoxelSearch v;
     // Visits boxes [first, last) (at most 8, first a multiple of 4) of `level` nearest first,
@@ -475,6 +390,14 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
                 if (v.bestT == kNone) continue; // nothing within reach: sign left to the flood fill
                 const openvdb::Index offset = openvdb::Index((vx << 6) | (vy << 3) | vz);
                 const double d = std::sqrt(v.best2);
+                if (!pseudo) { // signed after the leaf's distances (winding), or not at all
+                    s.vd[offset] = d;
+                    if (wantClosest) {
+                        s.vcp[offset] = openvdb::Vec3f(v.bestCp.point - v.p);
+                        s.vtri[offset] = int32_t(v.bestT);
+                    }
+                    continue;
+                }
                 const bool inside = ctx.normals.isInside(v.bestT, v.bestCp, v.p);
                 if (inside ? d < ctx.intW : d < ctx.extW) {
                     res.sdf->setValueOn(offset, float((inside ? -d : d) * ctx.voxelSize));
@@ -488,6 +411,7 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
                 }
                 }
             }
+    if (!pseudo) return finishLeaf(ctx, s, res, wantClosest);
     s.activeVoxels += active;
     if (active == 0) return LeafResult{};
     return res;
@@ -599,6 +523,7 @@ void checkWidth(const char* name, float w)
 
 } // namespace meshtols_internal
 
+
 namespace {
 LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSetOptions& options,
                                   MeshToLevelSetStats* statsOut, bool wantClosest)
@@ -609,6 +534,16 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     auto* interrupter = options.interrupter;
 
     requireUsableMesh(mesh);
+    const SignMode mode = resolveSignMode(mesh, options, stats.signReason);
+    stats.sign = mode;
+    const bool winding = mode == SignMode::Winding, unsignedMode = mode == SignMode::Unsigned;
+    if (options.fillInterior && unsignedMode)
+        throw InvalidArgumentError("fill interior needs an inside: it cannot be combined with the unsigned sign mode");
+    if (winding && !(options.windingAccuracy > 1.0 && std::isfinite(options.windingAccuracy))) {
+        std::ostringstream os;
+        os << "the winding accuracy (beta) must be a finite number above 1, got " << options.windingAccuracy;
+        throw InvalidArgumentError(os.str());
+    }
     const double h = resolveVoxelSize(mesh, options);
     stats.voxelSize = h;
     // Band limits in voxels, held in float as they always were.
@@ -618,7 +553,10 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     checkWidth("interior band width", intWf);
 
     const double extW = extWf, intW = intWf;
-    const double limit = std::max(extW, intW);
+    // Unsigned: the band is the exterior width. Winding: voxels within 1 voxel of the surface are
+    // always computed (active or not), so that a tile never holds surface (the tile signs rely
+    // on it); the band itself is unchanged.
+    const double limit = unsignedMode ? extW : winding ? std::max({extW, intW, 1.0}) : std::max(extW, intW);
 
     // Cell space: cell ijk = [i, i+1)^3 holds voxel ijk, whose centre is at world ijk*h.
     const BBoxd bounds = mesh.bounds();
@@ -686,7 +624,19 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     const TriangleHierarchy hierarchy(mesh, cellPts, use, interrupter);
     stats.hierarchyNodes = hierarchy.nodes().size();
     stats.clusters = hierarchy.clusters().size();
+    std::unique_ptr<FastWindingNumber> fwn;
+    if (winding) {
+        const auto tw = Clock::now();
+        FastWindingNumberOptions fo;
+        fo.accuracy = options.windingAccuracy;
+        fwn.reset(new FastWindingNumber(mesh, fo));
+        stats.currentEdges = fwn->currentEdges();
+        stats.secondsWinding = secondsSince(tw);
+    }
     Context ctx{mesh, cellPts, hierarchy, normals, h, extW, intW, limit, limit * limit, 0.0, float(extW * h)};
+    ctx.sign = mode;
+    ctx.fwn = fwn.get();
+    ctx.deferWinding = winding && fwn->currentEdges() == 0;
     // Single-precision bounds are evaluated at |q| <= cluster radius + limit + margin; their
     // rounding is a few ulps of that (covered 8x), and never below the old 1e-4 cell.
     ctx.margin = std::max(1e-4 * std::max(1.0, (limit + 20.0) / 32.0), 2e-6 * (hierarchy.maxClusterRadius() + limit + 2.0));
@@ -709,8 +659,11 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     const uint64_t leafCount = leafMask.activeVoxelCount();
     // output leaves (values + mask + pointers) and each thread's scratch (frontier, box levels,
     // block buffers: about 1 MiB at the largest frontier)
+    // (winding signs deferred until all leaves are known keep DeferredWinding per leaf meanwhile)
     detail::checkBandLeafBudget("mesh to level set", leafCount, limit,
-                                double(detail::budgetThreads()) * double(1u << 20), options.maxVoxels);
+                                double(detail::budgetThreads()) * double(1u << 20) +
+                                    (ctx.deferWinding ? double(leafCount) * double(sizeof(DeferredWinding)) : 0.0),
+                                options.maxVoxels);
     std::vector<Coord> cand;
     cand.reserve(size_t(leafCount));
     for (auto it = leafMask.cbeginValueOn(); it; ++it) {
@@ -754,12 +707,17 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     });
     if (poller.stopped()) throw InterruptedError("interrupted while computing distances");
     for (const Scratch& s : scratchTls) {
+        stats.windingEvaluations += s.windingEvaluations;
+        stats.windingGroups += s.windingGroups;
+        stats.windingIndividual += s.windingIndividual;
         stats.distanceEvaluations += s.evaluations;
         stats.boundTests += s.boundTests;
         stats.nodeTests += s.nodeTests;
         stats.candidateVoxels += s.candidateVoxels;
         stats.activeVoxels += s.activeVoxels;
     }
+    if (ctx.deferWinding)
+        resolveDeferred(ctx, cand, outLeaves, wantClosest, stats.windingEvaluations, stats.activeVoxels);
     stats.secondsDistance = secondsSince(t1d);
     stats.secondsVoxelize = stats.secondsHierarchy;
     stats.secondsLists = stats.secondsCandidates;
@@ -771,11 +729,27 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     // (a failed allocation of a parent frees it with its unique_ptr).
     for (LeafResult& l : outLeaves)
         if (l.sdf) { tree->addLeaf(l.sdf.get()); (void)l.sdf.release(); }
-    openvdb::tools::signedFloodFill(*tree);
+    openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(h);
+    if (mode == SignMode::Pseudonormal) {
+        openvdb::tools::signedFloodFill(*tree);
+    } else if (winding) {
+        // the tiles' signs (the leaves are signed); leaves kept only for their inactive signs
+        // collapse back into tiles
+        WindingSignStats ws;
+        winding_internal::signTree(*tree, *xform, *fwn, bounds, false, std::numeric_limits<double>::infinity(), ws);
+        openvdb::tools::prune(*tree);
+        stats.windingEvaluations += ws.evaluations;
+        stats.windingGroups += ws.components;
+        stats.windingIndividual += ws.individual;
+        stats.insideTiles = ws.insideTiles;
+    }
+    if (options.fillInterior) stats.filledVoxels = winding_internal::activateInterior(*tree);
     auto grid = openvdb::FloatGrid::create(tree);
-    grid->setTransform(openvdb::math::Transform::createLinearTransform(h));
-    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    grid->setTransform(xform);
+    grid->setGridClass(unsignedMode ? openvdb::GRID_UNKNOWN : openvdb::GRID_LEVEL_SET);
     grid->setName(options.gridName);
+    grid->insertMeta(kSignMetadata, openvdb::StringMetadata(toString(mode)));
+    if (options.fillInterior) grid->insertMeta(kFillInteriorMetadata, openvdb::BoolMetadata(true));
     LevelSetWithClosestPoints result;
     result.levelSet = grid;
     if (wantClosest) {

@@ -4,9 +4,12 @@
 #include <levelforge/pipeline/MeshToSdf.h>
 
 #include "detail/Timer.h"
+#include "mesh/WindingSignInternal.h"
 
 #include <levelforge/core/Exceptions.h>
+#include <levelforge/core/MeshValidation.h>
 #include <levelforge/io/VdbIO.h>
+#include <levelforge/mesh/FastWindingNumber.h>
 
 #include <algorithm>
 #include <cmath>
@@ -42,6 +45,42 @@ openvdb::FloatGrid::Ptr meshToSdf(const TriangleMesh& mesh, const MeshToSdfOptio
         throw InvalidArgumentError(os.str());
     }
 
+    // The sign mode, once, for every stage.
+    // (Auto with the chang method is resolved by the band stage, from the same report.)
+    SignMode sign = o.sign;
+    std::string signReason = std::string(toString(sign)) + ": requested";
+    MeshReport localReport;
+    const MeshReport* report = o.validation;
+    bool resolvedHere = sign != SignMode::Auto; // else the band stage says why
+    if (sign == SignMode::Auto) {
+        requireUsableMesh(mesh);
+        if (!report) {
+            localReport = validateMesh(mesh);
+            report = &localReport;
+        }
+        if (scan) {
+            sign = SignMode::Pseudonormal;
+            resolvedHere = true;
+            signReason = std::string("auto: the scan method signs by pseudonormals") +
+                         (report->closed() ? "" : " (the mesh is not closed: signs may be wrong away from the surface)");
+        } else if (o.expansion == Expansion::Sweep && !report->closed()) {
+            sign = SignMode::Pseudonormal;
+            resolvedHere = true;
+            signReason = "auto: the mesh is not closed, but fast sweeping needs pseudonormal signs (signs and "
+                         "swept distances may be wrong across its holes; --expansion vector signs it by the winding number)";
+        }
+    }
+    if (sign == SignMode::Winding && o.expansion == Expansion::Sweep)
+        throw InvalidArgumentError("the winding sign mode cannot be fast-swept: across a hole the signed band has no zero "
+                                   "crossing and the sweep makes one up; use --expansion vector");
+    if (scan && (sign == SignMode::Winding || sign == SignMode::Unsigned))
+        throw InvalidArgumentError(std::string("the ") + toString(sign) +
+                                   " sign mode needs the chang band method (the scan method signs by pseudonormals)");
+    if (sign == SignMode::Unsigned && expand)
+        throw InvalidArgumentError("an unsigned distance cannot be expanded: the expansion needs inside and outside");
+    if (sign == SignMode::Unsigned && o.fillInterior)
+        throw InvalidArgumentError("fill interior needs an inside: it cannot be combined with the unsigned sign mode");
+
     // One voxel size and the final widths in voxels, held in float as the band stages hold them.
     const double h = resolveVoxelSize(mesh, o);
     const float exteriorTarget = static_cast<float>(o.widthInVoxels(o.exteriorWidth, h));
@@ -74,6 +113,10 @@ openvdb::FloatGrid::Ptr meshToSdf(const TriangleMesh& mesh, const MeshToSdfOptio
     } else {
         MeshToLevelSetOptions mo;
         static_cast<GridSpec&>(mo) = band;
+        mo.sign = sign;
+        mo.validation = report;
+        mo.windingAccuracy = o.windingAccuracy;
+        mo.fillInterior = o.fillInterior && !expand; // after an expansion: below
         if (vector) {
             LevelSetWithClosestPoints r = meshToLevelSetWithClosestPoints(mesh, mo, &stats.band);
             grid = r.levelSet;
@@ -82,6 +125,16 @@ openvdb::FloatGrid::Ptr meshToSdf(const TriangleMesh& mesh, const MeshToSdfOptio
         } else {
             grid = meshToLevelSet(mesh, mo, &stats.band);
         }
+        sign = stats.band.sign;
+        if (!resolvedHere) signReason = stats.band.signReason;
+        stats.filledVoxels = stats.band.filledVoxels;
+    }
+    if (sign == SignMode::Winding && expand &&
+        !(exteriorBand >= 1.0f && interiorBand >= 1.0f)) {
+        std::ostringstream os;
+        os << "the winding sign mode with an expansion needs an exact band of at least 1 voxel on each side, got "
+           << exteriorBand << " outside and " << interiorBand << " inside";
+        throw InvalidArgumentError(os.str());
     }
 
     std::string method = scan ? "erleben-dohlmann-t4-scan" : "chang2008-exact-band";
@@ -104,10 +157,27 @@ openvdb::FloatGrid::Ptr meshToSdf(const TriangleMesh& mesh, const MeshToSdfOptio
         }
         grid = expandLevelSet(*grid, eo, &stats.expansion);
         method += vector ? "+satherley-jones-vcvdt8" : "+zhao2005-fast-sweeping";
+        if (sign == SignMode::Winding) {
+            // the sweep signs what it adds from a flood fill of the band: sign everything beyond
+            // the exact band (and every tile) by the winding number again
+            FastWindingNumberOptions fo;
+            fo.accuracy = o.windingAccuracy;
+            const FastWindingNumber fwn(mesh, fo);
+            WindingSignStats ws;
+            winding_internal::signTree(grid->tree(), grid->transform(), fwn, mesh.bounds(), true,
+                                       double(std::min(exteriorBand, interiorBand)) * h, ws);
+        }
     }
+    if (o.fillInterior && (expand || scan)) stats.filledVoxels = winding_internal::activateInterior(grid->tree());
 
     stampLevelSetMetadata(*grid, exteriorTarget, interiorTarget, o.source.empty() ? mesh.source : o.source,
                           method);
+    if (sign == SignMode::Unsigned) grid->setGridClass(openvdb::GRID_UNKNOWN); // a UDF has no inside
+    grid->insertMeta(kSignMetadata, openvdb::StringMetadata(toString(sign)));
+    if (o.fillInterior) grid->insertMeta(kFillInteriorMetadata, openvdb::BoolMetadata(true));
+    else grid->removeMeta(kFillInteriorMetadata);
+    stats.sign = sign;
+    stats.signReason = signReason;
     stats.voxelSize = h;
     stats.exteriorBandVoxels = exteriorTarget;
     stats.interiorBandVoxels = interiorTarget;

@@ -94,6 +94,82 @@ ExactReference::Result ExactReference::bruteForce(const Vec3d& p) const
     return best.result(*mNormals);
 }
 
+double ExactReference::windingNumber(const Vec3d& q) const
+{
+    // Van Oosterom & Strackee (1983): tan(Ω/2) = a·(b×c) / (|a||b||c| + (a·b)|c| + (b·c)|a| + (c·a)|b|)
+    double sum = 0.0;
+    for (uint32_t t = 0; t < mMesh.triangles.size(); ++t) {
+        if (mNormals->isDegenerate(t)) continue;
+        const Vec3I& v = mMesh.triangles[t];
+        const Vec3d a = mMesh.points[v[0]] - q, b = mMesh.points[v[1]] - q, c = mMesh.points[v[2]] - q;
+        const double det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+                           a[2] * (b[0] * c[1] - b[1] * c[0]);
+        if (det == 0.0) continue;
+        const double la = std::sqrt(a.dot(a)), lb = std::sqrt(b.dot(b)), lc = std::sqrt(c.dot(c));
+        const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+        sum += 2.0 * std::atan2(det, den);
+    }
+    return sum / (4.0 * 3.14159265358979323846);
+}
+
+WindingSignReport compareSignsToWindingNumber(const openvdb::FloatGrid& grid, const ExactReference& reference,
+                                              double margin, uint64_t stride, bool inactive)
+{
+    using openvdb::Coord;
+    if (stride == 0) stride = 1;
+    struct Acc { WindingSignReport r; };
+    tbb::enumerable_thread_specific<Acc> tls;
+    const auto judge = [&](Acc& acc, const Vec3d& world, float value) {
+        if (value == 0.0f) return;
+        const double w = reference.windingNumber(world);
+        ++acc.r.checked;
+        acc.r.maxAbsW = std::max(acc.r.maxAbsW, std::abs(w));
+        if (!(std::abs(std::abs(w) - 0.5) > margin)) { ++acc.r.undecisive; return; }
+        ++acc.r.decisive;
+        if ((std::abs(w) > 0.5) != (value < 0.0f)) ++acc.r.signErrors;
+    };
+    const auto sampled = [stride](const Coord& c) {
+        return stride <= 1 || (uint64_t(c.x() * 73856093u ^ c.y() * 19349663u ^ c.z() * 83492791u) % stride) == 0;
+    };
+    openvdb::tree::LeafManager<const openvdb::FloatTree> leafs(grid.tree());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, leafs.leafCount(), 4), [&](const tbb::blocked_range<size_t>& r) {
+        Acc& acc = tls.local();
+        for (size_t l = r.begin(); l != r.end(); ++l) {
+            for (auto it = leafs.leaf(l).cbeginValueAll(); it; ++it) {
+                if (!inactive && !it.isValueOn()) continue;
+                const Coord c = it.getCoord();
+                if (!sampled(c)) continue;
+                judge(acc, grid.indexToWorld(c), *it);
+            }
+        }
+    });
+    std::vector<std::pair<Vec3d, float>> tiles;
+    if (inactive) {
+        auto it = grid.tree().cbeginValueAll();
+        it.setMaxDepth(openvdb::FloatTree::ValueAllCIter::LEAF_DEPTH - 1); // tiles only
+        for (; it; ++it) {
+            if (it.isVoxelValue()) continue;
+            const openvdb::CoordBBox b = it.getBoundingBox();
+            if (!sampled(b.min())) continue;
+            const Vec3d centre = (Vec3d(b.min().x(), b.min().y(), b.min().z()) + Vec3d(b.max().x(), b.max().y(), b.max().z())) * 0.5;
+            tiles.emplace_back(grid.indexToWorld(centre), *it);
+        }
+    }
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+        Acc& acc = tls.local();
+        for (size_t i = r.begin(); i != r.end(); ++i) judge(acc, tiles[i].first, tiles[i].second);
+    });
+    WindingSignReport rep;
+    for (const Acc& a : tls) {
+        rep.checked += a.r.checked;
+        rep.decisive += a.r.decisive;
+        rep.signErrors += a.r.signErrors;
+        rep.undecisive += a.r.undecisive;
+        rep.maxAbsW = std::max(rep.maxAbsW, a.r.maxAbsW);
+    }
+    return rep;
+}
+
 BandErrorReport compareToReference(const openvdb::FloatGrid& grid, const ExactReference& reference,
                                    double exteriorWidth, double interiorWidth, uint64_t stride)
 {

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file
-/// @brief The front door: triangle mesh → exact narrow-band signed distance FloatGrid.
+/// @brief The front door: triangle mesh → exact narrow-band signed (or unsigned) distance
+///        FloatGrid.
 ///
 /// Algorithm: after Chang, Cha, Ihm, "Computing Local Signed Distance Fields for Large Polygonal
 /// Models", CGF 2008, in sparse VDB trees, with a hierarchy in place of the paper's cell lists
@@ -12,19 +13,45 @@
 ///      count is the voxel budget checked against maxVoxels before anything is allocated;
 ///   3. per voxel, §4.1's culling on the hierarchy: the previous voxel's triangle bounds the
 ///      search, boxes and single-precision distances prune, survivors are evaluated exactly;
-///   4. sign from the angle-weighted pseudonormal of the closest feature (§4.2), computed on
-///      demand with PseudoNormals' arithmetic (src/mesh/LazyPseudoNormals.h).
+///   4. the sign, by MeshToLevelSetOptions::sign (SignMode):
+///      - Pseudonormal: the angle-weighted pseudonormal of the closest feature (§4.2; Bærentzen
+///        & Aanæs 2005), computed on demand with PseudoNormals' arithmetic
+///        (src/mesh/LazyPseudoNormals.h); inactive values by OpenVDB's signed flood fill;
+///      - Winding: inside where |w| > 1/2, w the generalized winding number (Jacobson et al.
+///        2013) by the fast winding number (Barill et al. 2018, mesh/FastWindingNumber.h). It is
+///        not evaluated per voxel: w jumps only across the surface, and off it changes no faster
+///        than the Biot–Savart bound of the mesh's boundary edges (0 for a closed, consistently
+///        oriented mesh). In each leaf, two face-adjacent voxels u, v with d(u) + d(v) > 1 (voxels)
+///        see no surface between them (the open balls of radius d cover the segment), so the
+///        leaf's voxels fall into a few groups joined that way; w is estimated once per leaf, at
+///        its voxel farthest from the surface, carried to the other groups by the signed count
+///        of surface crossings (±1 each) and to each group's voxels with the gradient bound times
+///        the hops; where that cannot decide (near a hole's rim, or |w| near 1/2), first-order
+///        models (value and exact gradient, Hessian bound) per 4³ block, and as a last resort an
+///        estimate per voxel. Tiles are signed per VDB node the same way
+///        (signInactiveByWindingNumber(); docs/algorithm.md, "Sign modes");
+///      - Unsigned: no sign: the exact distance to the surface, for any surface (open sheets,
+///        cloth, soups); the band is the exterior width; the grid class is GRID_UNKNOWN;
+///      - Auto (the default of meshToSdf() and the CLI; this function's default is
+///        Pseudonormal): Pseudonormal when validateMesh() finds the mesh closed (watertight and
+///        consistently oriented) and no connected part encloses a negative volume (inside out),
+///        Winding otherwise; the stats say which and why.
+///   5. with fillInterior, every inside voxel is active (see MeshToLevelSetOptions::fillInterior).
 ///
 /// What is exact: every active voxel holds the Euclidean distance (computed in double precision,
-/// stored as float) to the closest triangle, signed by the pseudonormal rule. That rule gives the
-/// true inside/outside for closed, consistently oriented, non-self-intersecting meshes; for open
-/// or broken meshes the sign is the pseudonormal's verdict and may be inconsistent far from
-/// the surface. The band is exact out to the requested widths: a voxel is active iff
-/// -interiorWidth < d/voxelSize < exteriorWidth.
+/// stored as float) to the closest triangle. Its sign: Pseudonormal gives the true inside/outside
+/// for closed, consistently oriented, non-self-intersecting meshes; for open or broken meshes it
+/// is the pseudonormal's verdict and may be inconsistent far from the surface. Winding gives
+/// the sign of |w| − 1/2 exactly wherever ||w| − 1/2| exceeds kWindingTolerance (0.02) plus the
+/// estimate's error (measured below 1e-2, typically 2e-3, at the default accuracy β = 2);
+/// nearer to 1/2 it is the fast estimate's verdict. The band is exact out to the requested widths: a voxel is active iff
+/// -interiorWidth < d/voxelSize < exteriorWidth (Unsigned: d/voxelSize < exteriorWidth).
 ///
-/// Output follows OpenVDB's level-set conventions: GRID_LEVEL_SET class, world-unit values,
-/// negative inside, background = exteriorWidth * voxelSize, inactive voxels and tiles carry
-/// ±background (signed flood fill), voxel centres at integer index coordinates.
+/// Output follows OpenVDB's level-set conventions: GRID_LEVEL_SET class (GRID_UNKNOWN when
+/// unsigned), world-unit values, negative inside, background = exteriorWidth * voxelSize,
+/// inactive voxels and tiles carry ±background, voxel centres at integer index coordinates.
+/// The grid carries the metadata kSignMetadata ("pseudonormal", "winding" or "unsigned") and,
+/// when filled, kFillInteriorMetadata. Results do not depend on the number of threads.
 #pragma once
 
 #include <levelforge/core/GridSpec.h>
@@ -39,13 +66,48 @@
 
 namespace levelforge {
 
-/// @brief Options of meshToLevelSet(): everything is in GridSpec.
+struct MeshReport;
+
+/// How the distance is signed (Houdini's VDB from Polygons: the default, *Preserve Holes*,
+/// *Unsigned Distance*).
+enum class SignMode
+{
+    Auto,         ///< Pseudonormal for closed, consistently oriented meshes, Winding otherwise
+    Pseudonormal, ///< the angle-weighted pseudonormal of the closest feature (Bærentzen–Aanæs)
+    Winding,      ///< inside where |w| > 1/2, w the generalized winding number (fast, Barill et al.)
+    Unsigned      ///< no sign: the unsigned distance (any surface; not a level set)
+};
+
+/// "auto" / "pseudonormal" / "winding" / "unsigned"; throws InvalidArgumentError otherwise.
+SignMode signModeFromString(const std::string& name);
+/// The name signModeFromString() reads.
+const char* toString(SignMode mode);
+
+/// Grid metadata: the sign mode used, "pseudonormal" / "winding" / "unsigned" (StringMetadata).
+inline constexpr const char* kSignMetadata = "levelforge:sign";
+/// Grid metadata: true when every inside voxel is active (BoolMetadata).
+inline constexpr const char* kFillInteriorMetadata = "levelforge:fill_interior";
+
+/// @brief Options of meshToLevelSet().
 ///
 /// GridSpec holds the voxel size or count, band widths in voxels or world units, grid name, voxel
 /// budget and interrupter. The widths are rounded to float (the band limits are stored in float)
 /// after conversion to voxels; maxVoxels bounds the estimated band voxels.
 struct MeshToLevelSetOptions : GridSpec
 {
+    /// How the distance is signed (see SignMode and the file comment). The default here is
+    /// Pseudonormal, this function's behaviour before the sign modes existed (bit for bit);
+    /// the pipeline (meshToSdf()) and `levelforge mesh-to-sdf` default to Auto.
+    SignMode sign = SignMode::Pseudonormal;
+    /// Every voxel inside the surface is active and negative (Houdini's *Fill Interior*): the
+    /// band's voxels keep their exact distances; deeper voxels hold −background, as active tiles
+    /// where a whole tile is inside (a clamped distance, the value OpenVDB gives the inactive
+    /// interior of a level set: O(surface) work instead of O(volume)). Not with Unsigned.
+    bool fillInterior = false;
+    /// Winding: the fast winding number's accuracy β (> 1; FastWindingNumberOptions::accuracy).
+    double windingAccuracy = 2.0;
+    /// Auto: an existing validateMesh() report of this mesh (not owned); null: validate here.
+    const MeshReport* validation = nullptr;
 };
 
 /// @brief Counters of meshToLevelSet(): the hierarchy, the candidate leaves and the search.
@@ -62,9 +124,22 @@ struct MeshToLevelSetStats
     uint64_t distanceEvaluations = 0;     ///< exact (double-precision) point–triangle distance evaluations
     uint64_t boundTests = 0;              ///< single-precision triangle lower bounds computed
     uint64_t nodeTests = 0;               ///< box distances of hierarchy nodes computed
-    /// Wall-clock seconds: set-up, pseudonormals and the hierarchy; candidate leaves; distances;
-    /// tree assembly and flood fill.
+    /// Wall-clock seconds: set-up, pseudonormals and the hierarchy; candidate leaves; distances
+    /// (with the winding signs of the band's leaves); tree assembly, flood fill or tile signs, fill.
     double secondsHierarchy = 0, secondsCandidates = 0, secondsDistance = 0, secondsFinish = 0;
+
+    /// @name Sign
+    /// @{
+    SignMode sign = SignMode::Pseudonormal; ///< the mode used (never Auto)
+    std::string signReason;                 ///< why (Auto: what validation found)
+    uint64_t windingEvaluations = 0;        ///< fast winding number evaluations (leaves and tiles)
+    uint64_t windingGroups = 0;             ///< groups of voxels / tiles signed from one evaluation
+    uint64_t windingIndividual = 0;         ///< voxels / tiles that needed their own evaluation
+    uint64_t currentEdges = 0;              ///< boundary-current edges (0: w piecewise constant)
+    uint64_t insideTiles = 0;               ///< tiles set inside (any level)
+    uint64_t filledVoxels = 0;              ///< fillInterior: voxels activated (tiles by volume)
+    double secondsWinding = 0;              ///< building the fast winding number
+    /// @}
 
     /// @name Counters of the 0.1 road (microtriangle voxelization and per-cell triangle lists)
     /// Kept for source compatibility; the hierarchy road leaves them 0. secondsVoxelize and
@@ -88,17 +163,18 @@ struct MeshToLevelSetStats
 
 /// @brief Converts a triangle mesh to an exact narrow-band level set (see the file comment).
 ///
-/// Throws InvalidArgumentError (bad options), InvalidMeshError (empty mesh, NaN, bad index),
-/// ResourceLimitError (band too large), InterruptedError.
+/// Throws InvalidArgumentError (bad options, fillInterior with Unsigned), InvalidMeshError
+/// (empty mesh, NaN, bad index), ResourceLimitError (band too large), InterruptedError.
 /// @param[in]  mesh     the surface, world units, counter-clockwise seen from outside; degenerate
 ///                      (zero-area) triangles are skipped
 /// @param[in]  options  voxel size or count, band widths (voxels or world units), grid name,
-///                      voxel budget, interrupter (see MeshToLevelSetOptions)
+///                      voxel budget, interrupter, sign mode, fill (see MeshToLevelSetOptions)
 /// @param[out] stats    optional: counters and stage times of this run
-/// @return a GRID_LEVEL_SET FloatGrid named options.gridName, with a linear transform of the
-///         resolved voxel size; values in world units, negative inside, background
-///         exteriorWidth * voxelSize
-/// @throws InvalidArgumentError bad options (voxel size, voxel count, band widths)
+/// @return a GRID_LEVEL_SET FloatGrid (GRID_UNKNOWN when unsigned) named options.gridName, with
+///         a linear transform of the resolved voxel size; values in world units, negative
+///         inside, background exteriorWidth * voxelSize
+/// @throws InvalidArgumentError bad options (voxel size, voxel count, band widths, winding
+///         accuracy, fillInterior with SignMode::Unsigned)
 /// @throws InvalidMeshError empty mesh, NaN/Inf coordinate, bad index, or every triangle
 ///         degenerate
 /// @throws ResourceLimitError band too large for maxVoxels, or a voxel size so small that index

@@ -19,13 +19,24 @@
 ///      - Expansion::Vector: exact within exactBandVoxels with its closest points, then the
 ///        Satherley–Jones VCVDT over the sparse tree; each new voxel gets the exact distance to
 ///        the triangle its vector came from (an upper bound of the true distance, usually equal);
-///   3. the grid is stamped with the levelforge metadata (io/VdbIO.h: band widths in voxels,
-///      source, generator, method).
+///   3. the sign (MeshToSdfOptions::sign, see SignMode in mesh/MeshToLevelSet.h): Auto
+///      (default) signs closed, consistently oriented meshes by the angle-weighted pseudonormal
+///      of the closest feature (exact for them) and every other mesh by the generalized winding
+///      number (inside where |w| > 1/2; fast winding number, mesh/FastWindingNumber.h); Unsigned
+///      gives the unsigned distance (GRID_UNKNOWN class). BandMethod::Scan signs by
+///      pseudonormals only. After a vector expansion of a winding-signed band, every value
+///      beyond the exact band and every tile is signed again by the winding number (the
+///      expansion's signs come from a flood fill, which leaks through a broken mesh's holes);
+///      fast sweeping cannot carry winding signs (across a hole the band has no zero crossing
+///      and the sweep makes one up);
+///   4. with fillInterior every inside voxel is active: exact in the band, −background deeper
+///      (active tiles where a whole tile is inside);
+///   5. the grid is stamped with the levelforge metadata (io/VdbIO.h: band widths in voxels,
+///      source, generator, method; kSignMetadata; kFillInteriorMetadata when filled).
 ///
 /// The result follows OpenVDB's level-set conventions (GRID_LEVEL_SET, world-unit values,
-/// negative inside, background = exterior width in world units, signed flood fill) and does not
-/// depend on the number of threads. Signs come from the angle-weighted pseudonormal of the
-/// closest feature: exact for closed, consistently oriented meshes (see MeshValidation.h).
+/// negative inside, background = exterior width in world units; inactive values ±background)
+/// and does not depend on the number of threads.
 #pragma once
 
 #include <levelforge/core/GridSpec.h>
@@ -77,6 +88,18 @@ struct MeshToSdfOptions : GridSpec
     bool conservative = false;
     /// Value of the "levelforge:source" metadata; empty: mesh.source.
     std::string source;
+    /// How the distance is signed (SignMode; Auto: pseudonormal for closed meshes, winding
+    /// number otherwise). Winding and Unsigned need BandMethod::Chang; Unsigned no expansion;
+    /// Winding with an expansion needs Expansion::Vector (fast sweeping makes up a zero crossing
+    /// across a hole: Auto with Expansion::Sweep signs an open mesh by pseudonormals, as before)
+    /// and band widths of at least 1 voxel.
+    SignMode sign = SignMode::Auto;
+    /// Every inside voxel active (see MeshToLevelSetOptions::fillInterior); not with Unsigned.
+    bool fillInterior = false;
+    /// Winding: the fast winding number's accuracy β (> 1).
+    double windingAccuracy = 2.0;
+    /// Auto: an existing validateMesh() report of this mesh (not owned); null: validate here.
+    const MeshReport* validation = nullptr;
 };
 
 /// What each stage did (the stage that did not run keeps its zeros).
@@ -89,6 +112,9 @@ struct MeshToSdfStats
     double exteriorBandVoxels = 0.0;  ///< final band half-widths, voxels
     double interiorBandVoxels = 0.0;
     std::string method;               ///< the "levelforge:method" stamped on the grid
+    SignMode sign = SignMode::Pseudonormal; ///< the sign mode used (never Auto)
+    std::string signReason;           ///< why (Auto: what validation found)
+    uint64_t filledVoxels = 0;        ///< fillInterior: voxels activated (tiles counted by volume)
     double seconds = 0.0;             ///< the whole call
 };
 
@@ -97,8 +123,10 @@ struct MeshToSdfStats
 /// @param[in]  options  grid, band, method and expansion settings
 /// @param[out] stats    optional: what each stage did
 /// @return the level set, named options.gridName, stamped with the levelforge metadata
-/// @throws InvalidArgumentError (bad options), InvalidMeshError (empty mesh, NaN, bad index),
-///         ResourceLimitError (band larger than options.maxVoxels), InterruptedError.
+/// @throws InvalidArgumentError (bad options, or a combination that cannot work: winding or
+///         unsigned with the scan method, unsigned with an expansion or fillInterior, winding
+///         with fast sweeping, winding with an expansion and a band under 1 voxel), InvalidMeshError (empty mesh, NaN, bad
+///         index), ResourceLimitError (band larger than options.maxVoxels), InterruptedError.
 openvdb::FloatGrid::Ptr meshToSdf(const TriangleMesh& mesh, const MeshToSdfOptions& options = {},
                                   MeshToSdfStats* stats = nullptr);
 

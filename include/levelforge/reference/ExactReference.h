@@ -9,6 +9,12 @@
 /// sign on every voxel whose closest feature is unambiguous. A brute-force O(F) query is
 /// provided too, to test the BVH itself. compareToReference() measures a level set against it
 /// and reports the band's errors (BandErrorReport).
+///
+/// windingNumber() is the exact generalized winding number (Jacobson et al. 2013): the sum of
+/// the triangles' signed solid angles over 4π, every triangle evaluated (O(F), no tree, no
+/// expansion), each by Van Oosterom and Strackee's formula written out here independently of
+/// mesh/FastWindingNumber.h, so that it can be the fast winding number's oracle.
+/// compareSignsToWindingNumber() counts a grid's sign errors against it.
 #pragma once
 
 #include <levelforge/core/PseudoNormals.h>
@@ -66,6 +72,14 @@ public:
     /// @return the same Result as query() (ties go to the lowest triangle id in both)
     Result bruteForce(const Vec3d& worldPoint) const;
 
+    /// @brief The exact generalized winding number at @p worldPoint: Σ Ω_t / 4π over the
+    ///        non-degenerate triangles (Van Oosterom–Strackee solid angles, ascending triangle
+    ///        order, double precision). 1 inside and 0 outside a closed, consistently oriented
+    ///        mesh; on a triangle's plane its solid angle counts 0.
+    /// @param[in] worldPoint  the query point, world units
+    /// @return w (O(F) work)
+    double windingNumber(const Vec3d& worldPoint) const;
+
     /// @brief The pseudonormals used for the sign.
     const PseudoNormals& pseudoNormals() const { return *mNormals; }
 
@@ -103,5 +117,30 @@ struct BandErrorReport
 /// @return the error statistics (maximum and mean error, sign errors, missing and extra voxels)
 BandErrorReport compareToReference(const openvdb::FloatGrid& grid, const ExactReference& reference,
                                    double exteriorWidth, double interiorWidth, uint64_t stride = 1);
+
+/// @brief Signs of a grid against the exact winding number (inside where |w| > 1/2).
+struct WindingSignReport
+{
+    uint64_t checked = 0;        ///< values compared
+    uint64_t decisive = 0;       ///< of them, where ||w| − 1/2| > margin
+    uint64_t signErrors = 0;     ///< decisive values whose sign disagrees (negative ⇔ inside)
+    uint64_t undecisive = 0;     ///< values with ||w| − 1/2| <= margin (not judged)
+    double maxAbsW = 0.0;        ///< largest |w| seen
+};
+
+/// @brief Compares the sign of every active voxel of @p grid (or about one in @p stride, by the
+///        same coordinate hash as compareToReference()), and with @p inactive also of its inactive
+///        leaf voxels and of one point per tile (its centre; about one tile in @p stride, by the
+///        hash of its first voxel), with the exact winding number:
+///        a value counts as inside when it is negative. Voxels exactly on the surface (|φ| = 0)
+///        are skipped. Parallel; deterministic.
+/// @param[in] grid       the signed grid (world-unit values; its transform maps voxels to world)
+/// @param[in] reference  the exact reference of the mesh the grid was made from
+/// @param[in] margin     values with ||w| − 1/2| <= margin are not judged (the 0.25)
+/// @param[in] stride     1: every voxel; n > 1: about one in n
+/// @param[in] inactive   also the inactive voxels of leaves and the tiles
+/// @return the counts
+WindingSignReport compareSignsToWindingNumber(const openvdb::FloatGrid& grid, const ExactReference& reference,
+                                              double margin = 0.25, uint64_t stride = 1, bool inactive = false);
 
 } // namespace levelforge

@@ -1,0 +1,163 @@
+// SPDX-License-Identifier: Apache-2.0
+// Private to the main road (src/mesh/MeshToLevelSet*.cc): the per-thread scratch, the work
+// poller, the conversion context, and the sign stage's entry points (MeshToLevelSetSign.cc).
+#pragma once
+
+#include "detail/Timer.h"
+#include "mesh/LazyPseudoNormals.h"
+#include "mesh/TriangleHierarchy.h"
+
+#include <levelforge/mesh/FastWindingNumber.h>
+#include <levelforge/mesh/MeshToLevelSet.h>
+
+#include <openvdb/openvdb.h>
+#include <openvdb/util/NullInterrupter.h>
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace levelforge {
+
+
+namespace meshtols_internal {
+
+using openvdb::Coord;
+using FloatLeaf = openvdb::FloatTree::LeafNodeType;
+using Vec3fLeaf = openvdb::Vec3fTree::LeafNodeType;
+using Int32Leaf = openvdb::Int32Tree::LeafNodeType;
+using detail::Clock;
+using detail::secondsSince;
+using namespace mesh_internal;
+
+constexpr uint32_t kNone = kNoTriangle;
+constexpr size_t kMaxFlat = 4096;   // clusters a leaf lists flat, at most
+constexpr size_t kMaxFrontier = 32; // subtrees a leaf's voxels start their search from, when more
+
+/// Per-thread scratch reused for every leaf: no per-voxel allocation.
+struct Scratch
+{
+    std::vector<uint32_t> front, next;             // the leaf's frontier of hierarchy nodes
+    std::vector<std::pair<double, uint32_t>> order; // frontier sorted by distance to the leaf centre
+    std::vector<uint32_t> near;                     // per voxel: the frontier entries within reach
+    std::vector<float> fd2;                         // per voxel: their squared distances
+    // The frontier's boxes and an 8-ary tree over them: level 0 holds the entries' boxes, level
+    // k + 1 the union of 8 consecutive boxes of level k, up to a level of at most 8 boxes. Each
+    // level is 6 SoA arrays of `stride` floats (a multiple of 8, padded with far boxes),
+    // relative to the leaf centre.
+    struct Level
+    {
+        std::vector<float> box;
+        size_t count = 0, stride = 0;
+    };
+    std::vector<Level> levels;
+    size_t nLevels = 0;
+    std::vector<std::pair<uint32_t, double>> stack; // traversal stack: node, its box distance²
+    uint64_t evaluations = 0, boundTests = 0, nodeTests = 0, candidateVoxels = 0, activeVoxels = 0;
+    std::vector<std::pair<float, uint32_t>> blockList; // a 2×2×2 block's clusters: key, cluster index
+    struct WorkPoller* poller = nullptr; // polls the interrupter by work done (null: none)
+    uint64_t reported = 0;               // evaluations already handed to the poller
+    // Winding / unsigned: the leaf's voxels before their sign is known (distance in voxels, -1
+    // where nothing is within reach; closest-point offset and triangle), the groups of voxels
+    // with no surface between them, and the signs.
+    double vd[512];
+    openvdb::Vec3f vcp[512];
+    int32_t vtri[512];
+    uint8_t member[512], inside[512];
+    int32_t hops[512], hopsRep[512];
+    uint8_t inGroup[512] = {};
+    std::vector<uint32_t> group, group2, groupStart, groupRep, groupVoxels, tris, undecided;
+    std::vector<Vec3d> points;
+    std::vector<double> values;
+    uint64_t windingEvaluations = 0, windingGroups = 0, windingIndividual = 0;
+};
+
+/// Polls the interrupter by work done, not by time: once for every kEvaluationsPerPoll exact
+/// evaluations of all threads together (well under a millisecond of work each), also from
+/// inside a leaf, so that no leaf, however many triangles it sees, runs long unpolled. Threads
+/// hand over their counts in steps of kReportStep (one atomic add per step).
+struct WorkPoller
+{
+    static constexpr uint64_t kEvaluationsPerPoll = 8192;
+    static constexpr uint64_t kReportStep = 1024;
+    openvdb::util::NullInterrupter* interrupter = nullptr;
+    size_t leaves = 1;
+    std::atomic<size_t> done{0};    // leaves finished
+    std::atomic<uint64_t> work{0};  // evaluations reported
+    std::atomic<uint64_t> polls{0}; // polls made
+    std::atomic<bool> stop{false};
+
+    int percent() const { return 20 + int(75.0 * double(done.load(std::memory_order_relaxed)) / double(leaves)); }
+    void poll()
+    {
+        if (interrupter->wasInterrupted(percent())) stop.store(true, std::memory_order_relaxed);
+    }
+    /// Reports the scratch's new evaluations and makes the polls they are owed.
+    void report(Scratch& s)
+    {
+        const uint64_t delta = s.evaluations - s.reported;
+        if (delta == 0) return;
+        s.reported = s.evaluations;
+        const uint64_t owed = (work.fetch_add(delta, std::memory_order_relaxed) + delta) / kEvaluationsPerPoll;
+        uint64_t p = polls.load(std::memory_order_relaxed);
+        while (p < owed)
+            if (polls.compare_exchange_weak(p, p + 1, std::memory_order_relaxed)) { poll(); ++p; }
+    }
+    bool stopped() const { return stop.load(std::memory_order_relaxed); }
+};
+
+struct Context
+{
+    const TriangleMesh& mesh;
+    const std::vector<Vec3d>& cellPts; // mesh points in cell space
+    const TriangleHierarchy& hierarchy;
+    const LazyPseudoNormals& normals;
+    double voxelSize;
+    double extW, intW, limit, limit2;
+    double margin; // cells: covers the single-precision rounding of the cluster bounds
+    float background;
+    SignMode sign = SignMode::Pseudonormal; // never Auto here
+    const FastWindingNumber* fwn = nullptr; // Winding
+    bool deferWinding = false; // Winding without boundary current: signs after all leaves
+};
+
+
+/// Winding signs of a mesh without boundary current, deferred until every leaf is known: the
+/// leaf's groups of voxels (no surface between them) and a lower bound of each voxel's distance
+/// (voxels; −1 where nothing was within reach), for joining groups across the leaf's faces.
+struct DeferredWinding
+{
+    uint16_t group[512];
+    float lower[512];
+    uint8_t band[512]; // bit 0: d < exterior width, bit 1: d < interior width (from the double d)
+    uint16_t groups = 0;
+};
+
+struct LeafResult
+{
+    std::unique_ptr<FloatLeaf> sdf;
+    std::unique_ptr<Vec3fLeaf> cp;
+    std::unique_ptr<Int32Leaf> tri;
+    std::unique_ptr<DeferredWinding> deferred; // winding, w piecewise constant: signs still to come
+};
+
+/// Winding: voxels closer than this to the surface (voxels) lie on it to rounding: value +0, no
+/// sign, no estimate.
+constexpr double kOnSurface = 1e-9;
+
+/// Fills the output leaf of `res` with the winding (or unsigned) values of the distances in `s`
+/// (see MeshToLevelSetSign.cc); an empty result when no voxel had a triangle within reach.
+LeafResult finishLeaf(const Context& ctx, Scratch& s, LeafResult& res, bool wantClosest);
+
+/// The deferred winding signs of every leaf (Winding without boundary current).
+void resolveDeferred(const Context& ctx, const std::vector<Coord>& origins, std::vector<LeafResult>& leaves,
+                     bool wantClosest, uint64_t& evaluations, uint64_t& activeVoxels);
+
+/// The sign mode a conversion uses, and why (Auto: validateMesh()'s verdict).
+SignMode resolveSignMode(const TriangleMesh& mesh, const MeshToLevelSetOptions& options, std::string& reason);
+
+} // namespace meshtols_internal
+} // namespace levelforge

@@ -1,0 +1,526 @@
+// SPDX-License-Identifier: Apache-2.0
+// Mesh → level set, the sign stage of the winding and unsigned modes (see MeshToLevelSet.h,
+// SignMode): the groups of a leaf's voxels with no surface between them, one winding number
+// estimate per group (or per component of groups across leaves), and the choice of Auto.
+#include "mesh/MeshToLevelSetInternal.h"
+#include "mesh/WindingSignInternal.h"
+
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/core/MeshValidation.h>
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace levelforge {
+namespace meshtols_internal {
+
+
+/// The winding signs of a leaf's 512 voxels (see MeshToLevelSet.h, SignMode::Winding).
+///
+/// Groups: face-adjacent voxels u, v with d(u) + d(v) > 1 see no surface between them (the open
+/// balls of radius d cover the segment; a voxel with nothing within reach counts the limit as a
+/// lower bound of its distance), so w changes along the hop by at most the gradient bound g of
+/// the leaf's box (0 for a mesh without boundary current). One estimate is made per leaf, at
+/// the voxel farthest from the surface (P); every other group's representative Q (its farthest
+/// voxel) gets w(Q) = w(P) + the signed crossings of a segment P'→Q' with the leaf's triangles,
+/// P' and Q' moved inside their surface-free balls off the lattice (so that the segment misses
+/// edges and vertices; another direction is tried when a crossing is too close to call, and
+/// after three the representative is evaluated instead), ± g × the path length. Each voxel
+/// then takes its group's value ± g × its hops from the representative; a voxel whose interval
+/// still contains ±1/2 gets its own estimate.
+void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
+{
+    using namespace winding_internal;
+    const double h = ctx.voxelSize;
+    double lower[512];
+    for (int i = 0; i < 512; ++i) {
+        lower[i] = s.vd[i] >= 0.0 ? s.vd[i] : ctx.limit;
+        s.member[i] = 1;
+        s.hops[i] = -1;
+    }
+    const auto adjacent = [&lower](uint32_t a, uint32_t b) { return lower[a] + lower[b] > 1.0 + 1e-9; };
+    const auto indexOf = [&](uint32_t i) {
+        return Vec3d(double(origin.x() + int(i >> 6)), double(origin.y() + int((i >> 3) & 7)), double(origin.z() + int(i & 7)));
+    };
+    // groups, each with its representative (farthest voxel, ties to the lowest offset)
+    s.groupStart.clear();
+    s.groupRep.clear();
+    s.groupVoxels.clear();
+    for (uint32_t start = 0; start < 512; ++start) {
+        if (s.hops[start] >= 0) continue;
+        bfs(3, start, s.member, adjacent, s.hops, s.group);
+        uint32_t rep = s.group[0];
+        for (uint32_t i : s.group)
+            if (lower[i] > lower[rep] || (lower[i] == lower[rep] && i < rep)) rep = i;
+        s.groupStart.push_back(uint32_t(s.groupVoxels.size()));
+        s.groupRep.push_back(rep);
+        s.groupVoxels.insert(s.groupVoxels.end(), s.group.begin(), s.group.end());
+    }
+    const size_t groups = s.groupRep.size();
+    s.groupStart.push_back(uint32_t(s.groupVoxels.size()));
+    s.windingGroups += groups;
+    size_t main = 0;
+    for (size_t k = 1; k < groups; ++k)
+        if (lower[s.groupRep[k]] > lower[s.groupRep[main]]) main = k;
+    const uint32_t P = s.groupRep[main];
+    const double w0 = (*ctx.fwn)(indexOf(P) * h);
+    ++s.windingEvaluations;
+    // gradient bound per voxel of path over the leaf's cells grown by the largest move of a
+    // segment end (0.25 voxel)
+    const double g = ctx.fwn->gradientBound((indexOf(0) - Vec3d(0.5)) * h, (indexOf(511) + Vec3d(0.5)) * h) * h;
+    // fixed directions off the lattice for the segment ends
+    static const Vec3d kDir[3] = {Vec3d(0.5257311121, 0.3090169944, 0.7925052400).unit(),
+                                  Vec3d(-0.2763932023, 0.8506508084, 0.4472135955).unit(),
+                                  Vec3d(0.7236067977, -0.5257311121, 0.4472135955).unit()};
+    const auto evalVoxel = [&](uint32_t i) {
+        ++s.windingEvaluations;
+        ++s.windingIndividual;
+        return (*ctx.fwn)(indexOf(i) * h);
+    };
+    // The change of w along P → P' → Q' → Q (P', Q' inside the surface-free balls, off the
+    // lattice): its signed crossings, and the path's length; false when no attempt was clear.
+    bool gathered = false;
+    const auto crossing = [&](uint32_t A, uint32_t Bv, int& change, double& length) {
+        if (!gathered) {
+            FastWindingNumberAccess::gather(*ctx.fwn, (indexOf(0) - Vec3d(0.3)) * h, (indexOf(511) + Vec3d(0.3)) * h, s.tris);
+            gathered = true;
+        }
+        if (!(lower[A] > kOnSurface) || !(lower[Bv] > kOnSurface)) return false;
+        const double ma = 0.5 * std::min(lower[A], 0.5), mb = 0.5 * std::min(lower[Bv], 0.5);
+        for (int attempt = 0; attempt < 3; ++attempt) {
+            const Vec3d a = indexOf(A) + kDir[attempt] * ma, b = indexOf(Bv) + kDir[(attempt + 1) % 3] * mb;
+            if (crossingChange(*ctx.fwn, s.tris, a * h, b * h, change)) {
+                length = ma + (b - a).length() + mb;
+                return true;
+            }
+        }
+        return false;
+    };
+    s.undecided.clear();
+    for (size_t k = 0; k < groups; ++k) {
+        const uint32_t Q = s.groupRep[k];
+        double wq = w0, err0 = 0.0;
+        bool own = k == main; // the value is Q's own estimate
+        if (!(lower[Q] > kOnSurface)) {
+            // voxels on the surface (to rounding; a group of them alone): their value is 0
+            // whatever the side; +0, and no estimate
+            for (uint32_t i = s.groupStart[k]; i < s.groupStart[k + 1]; ++i) s.inside[s.groupVoxels[i]] = 0;
+            continue;
+        }
+        if (k != main) {
+            int change = 0;
+            double length = 0.0;
+            if (crossing(P, Q, change, length)) {
+                wq = w0 + change;
+                err0 = g > 0.0 ? g * length : 0.0;
+            } else {
+                wq = evalVoxel(Q);
+                own = true;
+            }
+        }
+        // tier 1: the leaf's gradient bound times the path (P to Q, then Q's hops)
+        const uint32_t* first = s.groupVoxels.data() + s.groupStart[k];
+        const uint32_t* last = s.groupVoxels.data() + s.groupStart[k + 1];
+        // (no hop counts needed when the group's size, which bounds every path, already decides)
+        const int whole = g > 0.0 ? decide(wq, err0 + g * double(last - first)) : decide(wq, err0);
+        const bool hops = g > 0.0 && last - first > 1 && whole < 0;
+        if (hops) {
+            for (const uint32_t* it = first; it != last; ++it) { s.inGroup[*it] = 1; s.hopsRep[*it] = -1; }
+            bfs(3, Q, s.inGroup, adjacent, s.hopsRep, s.group2);
+            for (const uint32_t* it = first; it != last; ++it) s.inGroup[*it] = 0;
+        }
+        for (const uint32_t* it = first; it != last; ++it) {
+            const uint32_t i = *it;
+            int v;
+            if (i == Q && own) v = insideByEstimate(wq) ? 1 : 0;
+            else if (!hops) v = whole >= 0 ? whole : decide(wq, err0);
+            else v = decide(wq, err0 + g * double(i == Q ? 0 : s.hopsRep[i]));
+            if (v < 0) s.undecided.push_back(i);
+            else s.inside[i] = uint8_t(v);
+        }
+    }
+    if (s.undecided.empty()) return;
+    // tier 2 (near a boundary edge, or where |w| is near 1/2): per 4×4×4 block, then per 2×2×2
+    // block for what the first leaves undecided, a first-order model at the block's voxel
+    // farthest from the surface S (value, exact gradient B, Hessian bound H of the block grown by
+    // the segment ends' moves); a voxel v gets
+    // w(S) + crossings(S' → v') + B·(v − S) ± (kWindingTolerance + ½ H L²), L the path length;
+    // a voxel still undecided, its own estimate.
+    const auto blockOf = [](uint32_t i, int shift) {
+        // the block of side 1 << shift holding voxel i, as the offset of its first voxel
+        const uint32_t m = (0xffu << shift) & 7u;
+        return (((i >> 6) & m) << 6) | (((i >> 3) & m) << 3) | (i & m);
+    };
+    for (int shift = 2; shift >= 1 && !s.undecided.empty(); --shift) {
+        const uint32_t side = 1u << shift;
+        std::sort(s.undecided.begin(), s.undecided.end(),
+                  [&](uint32_t a, uint32_t b) { return blockOf(a, shift) < blockOf(b, shift) || (blockOf(a, shift) == blockOf(b, shift) && a < b); });
+        s.group2.clear(); // still undecided after this size
+        for (size_t first = 0; first < s.undecided.size();) {
+            const uint32_t base = blockOf(s.undecided[first], shift);
+            size_t last = first;
+            while (last < s.undecided.size() && blockOf(s.undecided[last], shift) == base) ++last;
+            uint32_t S = base;
+            for (uint32_t x = 0; x < side; ++x)
+                for (uint32_t y = 0; y < side; ++y)
+                    for (uint32_t z = 0; z < side; ++z) {
+                        const uint32_t i = base + (x << 6) + (y << 3) + z;
+                        if (lower[i] > lower[S]) S = i;
+                    }
+            const Vec3d lo = indexOf(base) - Vec3d(0.75), hi = indexOf(base) + Vec3d(side - 0.25);
+            const double H = ctx.fwn->hessianBound(lo * h, hi * h) * h * h;
+            // a model is worth its estimate only where it can decide something
+            const bool model = std::isfinite(H) && lower[S] > kOnSurface && 0.5 * H * 3.0 * side * side < 0.5;
+            double ws = 0.0;
+            Vec3d Bs(0.0);
+            if (model) {
+                ws = evalVoxel(S);
+                Bs = ctx.fwn->gradient(indexOf(S) * h) * h;
+            }
+            for (size_t k = first; k < last; ++k) {
+                const uint32_t i = s.undecided[k];
+                int v = -1;
+                if (!(lower[i] > kOnSurface)) v = 0; // on the surface: 0 either way
+                else if (model && i == S) v = insideByEstimate(ws) ? 1 : 0;
+                else if (model) {
+                    int change = 0;
+                    double length = 0.0;
+                    if (crossing(S, i, change, length))
+                        v = decide(ws + change + Bs.dot(indexOf(i) - indexOf(S)), 0.5 * H * length * length);
+                }
+                if (v >= 0) s.inside[i] = uint8_t(v);
+                else s.group2.push_back(i);
+            }
+            first = last;
+        }
+        s.undecided.swap(s.group2);
+    }
+    // the rest (next to a hole's rim, mostly): their own estimates, a 4×4×4 block's voxels in
+    // one traversal of the tree (sorted by block above)
+    for (size_t first = 0; first < s.undecided.size();) {
+        const uint32_t base = blockOf(s.undecided[first], 2);
+        size_t last = first;
+        while (last < s.undecided.size() && blockOf(s.undecided[last], 2) == base) ++last;
+        s.points.clear();
+        for (size_t k = first; k < last; ++k) s.points.push_back(indexOf(s.undecided[k]) * h);
+        s.values.resize(s.points.size());
+        ctx.fwn->evaluate(s.points.data(), s.points.size(), s.values.data());
+        s.windingEvaluations += s.points.size();
+        s.windingIndividual += s.points.size();
+        for (size_t k = first; k < last; ++k) s.inside[s.undecided[k]] = insideByEstimate(s.values[k - first]) ? 1 : 0;
+        first = last;
+    }
+}
+
+/// Winding without boundary current: the leaf's groups and distances for the global join
+/// (resolveDeferred()); the values are the unsigned distances until then.
+LeafResult deferLeaf(const Context& ctx, Scratch& s, LeafResult& res, bool wantClosest)
+{
+    using namespace winding_internal;
+    auto dw = std::make_unique<DeferredWinding>();
+    double lower[512];
+    for (int i = 0; i < 512; ++i) {
+        lower[i] = s.vd[i] >= 0.0 ? s.vd[i] : ctx.limit;
+        s.member[i] = 1;
+        s.hops[i] = -1;
+        // a float not above the double (the join needs lower bounds)
+        float f = float(s.vd[i]);
+        if (s.vd[i] >= 0.0 && double(f) > s.vd[i]) f = std::nextafter(f, 0.0f);
+        dw->lower[i] = s.vd[i] >= 0.0 ? f : -1.0f;
+    }
+    const auto adjacent = [&lower](uint32_t a, uint32_t b) { return lower[a] + lower[b] > 1.0 + 1e-9; };
+    for (uint32_t start = 0; start < 512; ++start) {
+        if (s.hops[start] >= 0) continue;
+        bfs(3, start, s.member, adjacent, s.hops, s.group);
+        for (uint32_t i : s.group) dw->group[i] = dw->groups;
+        ++dw->groups;
+    }
+    s.windingGroups += dw->groups;
+    for (openvdb::Index i = 0; i < 512; ++i) {
+        dw->band[i] = 0;
+        if (s.vd[i] < 0.0) continue;
+        const double d = s.vd[i] <= kOnSurface ? 0.0 : s.vd[i];
+        dw->band[i] = uint8_t((d < ctx.extW ? 1 : 0) | (d < ctx.intW ? 2 : 0));
+        res.sdf->setValueOnly(i, float(d * ctx.voxelSize));
+        if (wantClosest) {
+            res.cp->setValueOnly(i, s.vcp[i]);
+            res.tri->setValueOnly(i, s.vtri[i]);
+        }
+    }
+    res.deferred = std::move(dw);
+    return std::move(res);
+}
+
+/// The deferred winding signs of every leaf (a mesh without boundary current: w is constant off
+/// the surface between jumps): groups joined across leaf faces (d(u) + d(v) > 1, with float
+/// lower bounds) into components of the union-find; one estimate per component, at its voxel
+/// farthest from the surface; then each leaf's values and active states. Deterministic: the
+/// union-find keeps the smallest index as the root, leaves are in sorted order.
+void resolveDeferred(const Context& ctx, const std::vector<Coord>& origins, std::vector<LeafResult>& leaves,
+                     bool wantClosest, uint64_t& evaluations, uint64_t& activeVoxels)
+{
+    using namespace winding_internal;
+    const size_t n = leaves.size();
+    std::vector<uint64_t> first(n + 1, 0);
+    for (size_t l = 0; l < n; ++l) first[l + 1] = first[l] + (leaves[l].deferred ? leaves[l].deferred->groups : 0);
+    const uint64_t total = first[n];
+    std::vector<uint64_t> parent(total);
+    for (uint64_t i = 0; i < total; ++i) parent[i] = i;
+    const auto find = [&parent](uint64_t x) {
+        while (parent[x] != x) x = parent[x] = parent[parent[x]];
+        return x;
+    };
+    const auto unite = [&](uint64_t a, uint64_t b) {
+        a = find(a);
+        b = find(b);
+        if (a < b) parent[b] = a;
+        else if (b < a) parent[a] = b;
+    };
+    const auto lowerOf = [&ctx](const DeferredWinding& d, int i) { return d.lower[i] >= 0.0f ? double(d.lower[i]) : ctx.limit; };
+    for (size_t l = 0; l < n; ++l) {
+        const DeferredWinding* a = leaves[l].deferred.get();
+        if (!a) continue;
+        for (int axis = 0; axis < 3; ++axis) {
+            Coord o = origins[l];
+            o[axis] += 8;
+            const auto it = std::lower_bound(origins.begin(), origins.end(), o);
+            if (it == origins.end() || *it != o) continue;
+            const size_t m = size_t(it - origins.begin());
+            const DeferredWinding* b = leaves[m].deferred.get();
+            if (!b) continue;
+            for (int u = 0; u < 8; ++u)
+                for (int v = 0; v < 8; ++v) {
+                    int ia, ib; // the voxel at the face of a, its neighbour in b
+                    if (axis == 0) { ia = (7 << 6) | (u << 3) | v; ib = (u << 3) | v; }
+                    else if (axis == 1) { ia = (u << 6) | (7 << 3) | v; ib = (u << 6) | v; }
+                    else { ia = (u << 6) | (v << 3) | 7; ib = (u << 6) | (v << 3); }
+                    if (lowerOf(*a, ia) + lowerOf(*b, ib) > 1.0 + 1e-9) unite(first[l] + a->group[ia], first[m] + b->group[ib]);
+                }
+        }
+    }
+    std::vector<uint64_t> roots;
+    for (uint64_t i = 0; i < total; ++i) {
+        parent[i] = find(i); // every entry straight to its root, for the parallel reads below
+        if (parent[i] == i) roots.push_back(i);
+    }
+    // the components that hold a leaf's voxel farthest from the surface get an estimate (at that
+    // voxel of the first such leaf); every other group its leaf's value plus its crossings
+    const auto farthest = [&](const DeferredWinding& a, int group) {
+        int best = -1;
+        for (int i = 0; i < 512; ++i)
+            if ((group < 0 || a.group[i] == group) && (best < 0 || lowerOf(a, i) > lowerOf(a, best))) best = i;
+        return best;
+    };
+    const auto indexOf = [&origins](size_t l, int i) {
+        return Vec3d(origins[l].x() + (i >> 6), origins[l].y() + ((i >> 3) & 7), origins[l].z() + (i & 7));
+    };
+    std::vector<int64_t> primaryAt(total, -1); // root -> leaf * 512 + voxel of its estimate
+    std::vector<int> leafP(n, -1);
+    for (size_t l = 0; l < n; ++l) {
+        const DeferredWinding* a = leaves[l].deferred.get();
+        if (!a) continue;
+        leafP[l] = farthest(*a, -1);
+        const uint64_t c = parent[first[l] + a->group[leafP[l]]];
+        if (primaryAt[c] < 0) primaryAt[c] = int64_t(l) * 512 + leafP[l];
+    }
+    std::vector<uint64_t> primary;
+    for (uint64_t r : roots)
+        if (primaryAt[r] >= 0) primary.push_back(r);
+    std::vector<double> value(total, 0.0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, primary.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k != r.end(); ++k) {
+            const int64_t at = primaryAt[primary[k]];
+            value[primary[k]] = (*ctx.fwn)(indexOf(size_t(at / 512), int(at % 512)) * ctx.voxelSize);
+        }
+    });
+    std::atomic<uint64_t> estimates{primary.size()}, active{0};
+    const float bg = ctx.background;
+    static const Vec3d kDir[3] = {Vec3d(0.5257311121, 0.3090169944, 0.7925052400).unit(),
+                                  Vec3d(-0.2763932023, 0.8506508084, 0.4472135955).unit(),
+                                  Vec3d(0.7236067977, -0.5257311121, 0.4472135955).unit()};
+    tbb::enumerable_thread_specific<std::vector<uint32_t>> trisTls;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16), [&](const tbb::blocked_range<size_t>& r) {
+        std::vector<uint32_t>& tris = trisTls.local();
+        for (size_t l = r.begin(); l != r.end(); ++l) {
+            LeafResult& res = leaves[l];
+            if (!res.deferred) continue;
+            const DeferredWinding& a = *res.deferred;
+            const int P = leafP[l];
+            const double w0 = value[parent[first[l] + a.group[P]]];
+            uint8_t groupInside[512];
+            bool gathered = false;
+            for (int g = 0; g < a.groups; ++g) {
+                const uint64_t c = parent[first[l] + uint64_t(g)];
+                if (primaryAt[c] >= 0) { groupInside[g] = insideByEstimate(value[c]) ? 1 : 0; continue; }
+                const int Q = farthest(a, g);
+                if (!(lowerOf(a, Q) > kOnSurface)) { groupInside[g] = 0; continue; } // on the surface
+                if (!gathered) {
+                    FastWindingNumberAccess::gather(*ctx.fwn, (indexOf(l, 0) - Vec3d(0.3)) * ctx.voxelSize,
+                                                    (indexOf(l, 511) + Vec3d(0.3)) * ctx.voxelSize, tris);
+                    gathered = true;
+                }
+                bool done = false;
+                int change = 0;
+                const double mp = 0.5 * std::min(lowerOf(a, P), 0.5), mq = 0.5 * std::min(lowerOf(a, Q), 0.5);
+                for (int attempt = 0; attempt < 3 && !done && mp > kOnSurface; ++attempt) {
+                    const Vec3d pa = indexOf(l, P) + kDir[attempt] * mp, pb = indexOf(l, Q) + kDir[(attempt + 1) % 3] * mq;
+                    done = crossingChange(*ctx.fwn, tris, pa * ctx.voxelSize, pb * ctx.voxelSize, change);
+                }
+                double w = w0 + change;
+                if (!done) {
+                    w = (*ctx.fwn)(indexOf(l, Q) * ctx.voxelSize);
+                    estimates.fetch_add(1, std::memory_order_relaxed);
+                }
+                groupInside[g] = insideByEstimate(w) ? 1 : 0;
+            }
+            uint64_t count = 0;
+            for (openvdb::Index i = 0; i < 512; ++i) {
+                const bool in = groupInside[a.group[i]] != 0;
+                if (a.lower[i] < 0.0f) { res.sdf->setValueOff(i, in ? -bg : bg); continue; }
+                const float v = res.sdf->getValue(i);
+                if (a.band[i] & (in ? 2 : 1)) {
+                    res.sdf->setValueOn(i, in ? -v : v);
+                    if (wantClosest) {
+                        res.cp->setValueOn(i);
+                        res.tri->setValueOn(i);
+                    }
+                    ++count;
+                } else {
+                    res.sdf->setValueOff(i, in ? -bg : bg);
+                }
+            }
+            res.deferred.reset();
+            active.fetch_add(count, std::memory_order_relaxed);
+        }
+    });
+    evaluations += estimates.load();
+    activeVoxels += active.load();
+}
+
+/// Winding and unsigned modes: the leaf's values from the distances recorded in `s`. A winding
+/// leaf is kept when any of its voxels had a triangle within reach, active or not (so that the
+/// tiles around it hold no surface); an unsigned one when a voxel is active.
+LeafResult finishLeaf(const Context& ctx, Scratch& s, LeafResult& res, bool wantClosest)
+{
+    const bool winding = ctx.sign == SignMode::Winding;
+    const Coord origin = res.sdf->origin();
+    bool any = false;
+    for (int i = 0; i < 512 && !any; ++i) any = s.vd[i] >= 0.0;
+    if (!any) return LeafResult{};
+    if (winding && ctx.deferWinding) return deferLeaf(ctx, s, res, wantClosest);
+    if (winding) windingSigns(ctx, origin, s);
+    const float bg = ctx.background;
+    uint64_t active = 0;
+    for (openvdb::Index i = 0; i < 512; ++i) {
+        const bool inside = winding && s.inside[i];
+        const double d = winding && s.vd[i] >= 0.0 && s.vd[i] <= kOnSurface ? 0.0 : s.vd[i];
+        if (d >= 0.0 && (inside ? d < ctx.intW : d < ctx.extW)) {
+            res.sdf->setValueOn(i, float((inside ? -d : d) * ctx.voxelSize));
+            if (wantClosest) {
+                res.cp->setValueOn(i, s.vcp[i]);
+                res.tri->setValueOn(i, s.vtri[i]);
+            }
+            ++active;
+        } else {
+            res.sdf->setValueOff(i, inside ? -bg : bg);
+        }
+    }
+    s.activeVoxels += active;
+    if (active == 0 && !winding) return LeafResult{};
+    return std::move(res);
+}
+
+} // namespace meshtols_internal
+
+SignMode signModeFromString(const std::string& name)
+{
+    if (name == "auto") return SignMode::Auto;
+    if (name == "pseudonormal") return SignMode::Pseudonormal;
+    if (name == "winding") return SignMode::Winding;
+    if (name == "unsigned") return SignMode::Unsigned;
+    throw InvalidArgumentError("unknown sign mode '" + name + "' (auto, pseudonormal, winding, unsigned)");
+}
+
+const char* toString(SignMode mode)
+{
+    switch (mode) {
+    case SignMode::Auto: return "auto";
+    case SignMode::Pseudonormal: return "pseudonormal";
+    case SignMode::Winding: return "winding";
+    case SignMode::Unsigned: return "unsigned";
+    }
+    return "auto";
+}
+
+namespace meshtols_internal {
+/// The connected parts (through shared vertices) of a closed mesh whose enclosed volume is
+/// negative (wound clockwise seen from outside: pseudonormals would sign them inside out).
+uint64_t invertedParts(const TriangleMesh& mesh, uint64_t& parts)
+{
+    std::vector<uint32_t> parent(mesh.points.size());
+    for (uint32_t i = 0; i < parent.size(); ++i) parent[i] = i;
+    const auto find = [&parent](uint32_t x) {
+        while (parent[x] != x) x = parent[x] = parent[parent[x]];
+        return x;
+    };
+    for (const Vec3I& t : mesh.triangles) {
+        const uint32_t a = find(t[0]), b = find(t[1]), c = find(t[2]);
+        parent[b] = a;
+        parent[find(c)] = find(a);
+    }
+    std::vector<double> volume(mesh.points.size(), 0.0);
+    std::vector<uint8_t> used(mesh.points.size(), 0);
+    for (const Vec3I& t : mesh.triangles) {
+        const uint32_t r = find(t[0]);
+        used[r] = 1;
+        volume[r] += mesh.points[t[0]].dot(mesh.points[t[1]].cross(mesh.points[t[2]]));
+    }
+    uint64_t inverted = 0;
+    parts = 0;
+    for (uint32_t i = 0; i < parent.size(); ++i) {
+        if (!used[i] || parent[i] != i) continue;
+        ++parts;
+        if (volume[i] < 0.0) ++inverted;
+    }
+    return inverted;
+}
+
+/// The sign mode a conversion uses, and why (Auto: validateMesh()'s verdict).
+SignMode resolveSignMode(const TriangleMesh& mesh, const MeshToLevelSetOptions& options, std::string& reason)
+{
+    if (options.sign != SignMode::Auto) {
+        reason = std::string(toString(options.sign)) + ": requested";
+        return options.sign;
+    }
+    MeshReport local;
+    const MeshReport* report = options.validation;
+    if (!report) {
+        local = validateMesh(mesh);
+        report = &local;
+    }
+    if (report->closed()) {
+        uint64_t parts = 0;
+        const uint64_t inverted = invertedParts(mesh, parts);
+        if (inverted == 0) {
+            reason = "auto: the mesh is closed and consistently oriented, so pseudonormals sign it exactly";
+            return SignMode::Pseudonormal;
+        }
+        std::ostringstream os;
+        os << "auto: the mesh is closed, but " << inverted << " of its " << parts
+           << " parts are inside out (negative volume), so the winding number signs it";
+        reason = os.str();
+        return SignMode::Winding;
+    }
+    std::ostringstream os;
+    os << "auto: the mesh is not closed (" << report->boundaryEdges << " boundary, " << report->nonManifoldEdges
+       << " non-manifold, " << report->inconsistentlyOrientedEdges
+       << " inconsistently oriented edges), so the winding number signs it";
+    reason = os.str();
+    return SignMode::Winding;
+}
+} // namespace meshtols_internal
+} // namespace levelforge

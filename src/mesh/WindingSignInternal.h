@@ -1,0 +1,103 @@
+// SPDX-License-Identifier: Apache-2.0
+// Private helpers of the winding-number sign (mesh/FastWindingNumber.h): the verdict of an
+// estimate with an error bound, breadth-first components on the 8³ / 16³ / 32³ grids of VDB
+// nodes, and the tile pass shared by meshToLevelSet() and signInactiveByWindingNumber().
+#pragma once
+
+#include <levelforge/mesh/FastWindingNumber.h>
+
+#include <openvdb/openvdb.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace levelforge {
+/// Private access to the fast winding number's triangles (leaf order).
+struct FastWindingNumberAccess
+{
+    /// Leaf-order indices of the triangles whose bounding box meets [lo, hi] (world units).
+    static void gather(const FastWindingNumber& f, const Vec3d& lo, const Vec3d& hi, std::vector<uint32_t>& out);
+    /// The 9 coordinates (a, b, c) of triangle i (leaf order).
+    static const double* triangle(const FastWindingNumber& f, uint32_t i);
+};
+} // namespace levelforge
+
+namespace levelforge::winding_internal {
+
+/// 1: |w| > 1/2 for every w within @p err of @p w (inside for sure); 0: |w| < 1/2 for all of
+/// them (outside for sure); -1: undecided.
+inline int verdict(double w, double err)
+{
+    const double a = std::abs(w);
+    if (a - err > 0.5) return 1;
+    if (a + err < 0.5) return 0;
+    return -1;
+}
+
+/// The inside rule applied to an estimate: |w| > 1/2.
+inline bool insideByEstimate(double w) { return std::abs(w) > 0.5; }
+
+/// A value carried from an estimate with a rigorous bound `carried` on what the carrying added
+/// (gradient bound × path, or a first-order model's remainder): 1 / 0 when the interval
+/// w ± (kWindingTolerance + carried) excludes ±1/2, or when carried <= kWindingTolerance (then
+/// the value is as good as an estimate of its own, and its verdict |w| > 1/2 is taken); -1
+/// otherwise. So a decided sign is exact wherever ||w| − 1/2| > 2 kWindingTolerance.
+inline int decide(double w, double carried)
+{
+    const int v = verdict(w, kWindingTolerance + carried);
+    if (v >= 0) return v;
+    return carried <= kWindingTolerance ? (insideByEstimate(w) ? 1 : 0) : -1;
+}
+
+/// The change of w along the segment P→Q (world units) from its crossings of the triangles
+/// @p tris (leaf-order indices, which must include every triangle the segment meets): +1 for each
+/// crossing of a triangle's interior from its front (the side its counter-clockwise normal
+/// points to) to its back, −1 the other way. Returns false when a crossing is too close to call
+/// (the segment passes within rounding of an edge or a vertex, or ends in a triangle's plane
+/// where it meets the triangle); the caller then perturbs the segment or evaluates w.
+bool crossingChange(const FastWindingNumber& fwn, const std::vector<uint32_t>& tris, const Vec3d& P, const Vec3d& Q,
+                    int& change);
+
+/// Breadth-first search on an n³ grid (n = 1 << log2n) in OpenVDB offset order
+/// ((x << 2 log2n) | (y << log2n) | z), 6-neighbours, restricted to cells with member[i] != 0
+/// for which adjacent(i, j) holds. Starting from `start`, writes hops[i] (0 at start) for every
+/// cell reached and lists them in `order` (BFS order, start first). `hops` must hold -1 at the
+/// cells not visited yet; cells already labelled are not entered again.
+template<typename Adjacent>
+void bfs(int log2n, uint32_t start, const uint8_t* member, Adjacent&& adjacent, int32_t* hops,
+         std::vector<uint32_t>& order)
+{
+    const uint32_t n = 1u << log2n, mask = n - 1;
+    order.clear();
+    order.push_back(start);
+    hops[start] = 0;
+    for (size_t head = 0; head < order.size(); ++head) {
+        const uint32_t i = order[head];
+        const uint32_t x = i >> (2 * log2n), y = (i >> log2n) & mask, z = i & mask;
+        const uint32_t nb[6] = {x > 0 ? i - (1u << (2 * log2n)) : ~0u, x < mask ? i + (1u << (2 * log2n)) : ~0u,
+                                y > 0 ? i - (1u << log2n) : ~0u,       y < mask ? i + (1u << log2n) : ~0u,
+                                z > 0 ? i - 1u : ~0u,                  z < mask ? i + 1u : ~0u};
+        for (uint32_t j : nb) {
+            if (j == ~0u || !member[j] || hops[j] >= 0 || !adjacent(i, j)) continue;
+            hops[j] = hops[i] + 1;
+            order.push_back(j);
+        }
+    }
+}
+
+/// The tile pass: signs every tile (root, level 2, level 1) of @p tree by the winding number,
+/// and with @p leavesToo also the values of its leaves with |φ| >= exactBand (world units)
+/// and every inactive leaf voxel (see signInactiveByWindingNumber()). Without leavesToo the
+/// leaves are taken as fully signed (meshToLevelSet()'s winding band). New leaves are made
+/// where a tile's sign changes inside it.
+void signTree(openvdb::FloatTree& tree, const openvdb::math::Transform& xform, const FastWindingNumber& fwn,
+              const BBoxd& meshBounds, bool leavesToo, double exactBand, WindingSignStats& stats);
+
+/// Activates every inactive negative value of @p tree: tiles stay tiles, leaf voxels keep their
+/// values (fill interior). Returns the number of voxels activated (tiles counted by volume).
+uint64_t activateInterior(openvdb::FloatTree& tree);
+
+} // namespace levelforge::winding_internal
