@@ -146,10 +146,10 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
     if (s.undecided.empty()) return;
     // tier 2 (near a boundary edge, or where |w| is near 1/2): per 4×4×4 block, then per 2×2×2
     // block for what the first leaves undecided, a first-order model at the block's voxel
-    // farthest from the surface S (value, exact gradient B, Hessian bound H of the block grown by
-    // the segment ends' moves); a voxel v gets
-    // w(S) + crossings(S' → v') + B·(v − S) ± (kWindingTolerance + ½ H L²), L the path length;
-    // a voxel still undecided, its own estimate.
+    // farthest from the surface S (value, gradient B from the edge tree with its error bound
+    // Be, Hessian bound H of the block grown by the segment ends' moves); a voxel v gets
+    // w(S) + crossings(S' → v') + B·(v − S) ± (kWindingTolerance + ½ H L² + Be |v − S|), L the
+    // path length; a voxel still undecided, its own estimate.
     const auto blockOf = [](uint32_t i, int shift) {
         // the block of side 1 << shift holding voxel i, as the offset of its first voxel
         const uint32_t m = (0xffu << shift) & 7u;
@@ -175,11 +175,12 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
             const double H = ctx.fwn->hessianBound(lo * h, hi * h) * h * h;
             // a model is worth its estimate only where it can decide something
             const bool model = std::isfinite(H) && lower[S] > kOnSurface && 0.5 * H * 3.0 * side * side < 0.5;
-            double ws = 0.0;
+            double ws = 0.0, be = 0.0;
             Vec3d Bs(0.0);
             if (model) {
                 ws = evalVoxel(S);
-                Bs = ctx.fwn->gradient(indexOf(S) * h) * h;
+                Bs = ctx.fwn->gradient(indexOf(S) * h, be) * h;
+                be *= h;
             }
             for (size_t k = first; k < last; ++k) {
                 const uint32_t i = s.undecided[k];
@@ -190,7 +191,8 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
                     int change = 0;
                     double length = 0.0;
                     if (crossing(S, i, change, length))
-                        v = decide(ws + change + Bs.dot(indexOf(i) - indexOf(S)), 0.5 * H * length * length);
+                        v = decide(ws + change + Bs.dot(indexOf(i) - indexOf(S)),
+                                   0.5 * H * length * length + be * (indexOf(i) - indexOf(S)).length());
                 }
                 if (v >= 0) s.inside[i] = uint8_t(v);
                 else s.group2.push_back(i);

@@ -99,24 +99,27 @@ struct Signer
 };
 
 /// A first-order model of w about the centre c of a surface-free cube (index space):
-/// w(x) = w + B·(x − c) ± (kWindingTolerance + ½ |x − c|² H), B and H per voxel.
+/// w(x) = w + B·(x − c) ± (kWindingTolerance + ½ |x − c|² H + Be |x − c|), B, Be and H per
+/// voxel (B the fast gradient, Be its error bound).
 struct Model
 {
     Vec3d c;
     double w = 0.0;
     Vec3d B{0.0};
+    double Be = 0.0; // bound of |B − ∇w(c)| (the far edges' approximation), per voxel
     double H = 0.0;
 
     int at(const Vec3d& x) const
     {
         const Vec3d d = x - c;
-        return decide(w + B.dot(d), 0.5 * d.lengthSqr() * H);
+        const double d2 = d.lengthSqr();
+        return decide(w + B.dot(d), 0.5 * d2 * H + Be * std::sqrt(d2));
     }
     /// The verdict for every voxel centre of the cube of `size` voxels centred at c.
     int uniform(int size) const
     {
         const double half = 0.5 * (size - 1);
-        const double lin = half * (std::abs(B[0]) + std::abs(B[1]) + std::abs(B[2]));
+        const double lin = half * (std::abs(B[0]) + std::abs(B[1]) + std::abs(B[2]) + kSqrt3 * Be);
         return decide(w, lin + 0.5 * 3.0 * half * half * H);
     }
 };
@@ -128,7 +131,9 @@ Model modelOf(const Signer& s, const Coord& o, int size, WindingSignStats& st)
     m.c = Vec3d(o.x() + half, o.y() + half, o.z() + half);
     m.w = s.estimate(m.c, st);
     if (s.hasCurrents) {
-        m.B = s.fwn.gradient(s.world(m.c)) * s.h;
+        double be = 0.0;
+        m.B = s.fwn.gradient(s.world(m.c), be) * s.h;
+        m.Be = be * s.h;
         const BBoxd wb = s.xform.indexToWorld(BBoxd(Vec3d(o.x() - 0.5, o.y() - 0.5, o.z() - 0.5),
                                                      Vec3d(o.x() + size - 0.5, o.y() + size - 0.5, o.z() + size - 0.5)));
         m.H = s.fwn.hessianBound(wb.min(), wb.max()) * s.h * s.h;
@@ -136,41 +141,65 @@ Model modelOf(const Signer& s, const Coord& o, int size, WindingSignStats& st)
     return m;
 }
 
-/// Signs the voxels of the surface-free cube [o, o + size)³ (size <= 8) into inside[] (offsets of
-/// the 8³ leaf at leafOrigin): a model at its centre, halved where the model cannot bound it
-/// (a boundary edge close by), each voxel it cannot decide evaluated alone.
-void modelVoxels(const Signer& s, const Coord& o, int size, const Coord& leafOrigin, uint8_t* inside, WindingSignStats& st)
+/// Signs the voxels `cells` (index coordinates) of the surface-free cube [o, o + size)³ into
+/// inside[] (offsets of the 8³ leaf at leafOrigin): a first-order model at the cube's centre
+/// decides what it can; where it cannot (a boundary edge close by: the Hessian bound is large)
+/// and more than kSplitVoxels voxels are left, the cube is halved and each half that holds some
+/// of them gets a model of its own (the models' error falls with the square of the size);
+/// what is left is evaluated voxel by voxel, in one traversal.
+constexpr size_t kSplitVoxels = 16;
+
+void modelCells(const Signer& s, const Coord& o, int size, std::vector<Coord>& cells, const Coord& leafOrigin,
+                uint8_t* inside, WindingSignStats& st)
 {
-    const Model m = modelOf(s, o, size, st);
-    if (!std::isfinite(m.H) && size > 1) {
+    const auto put = [&](const Coord& c, bool in) {
+        const Coord l = c - leafOrigin;
+        inside[(l.x() << 6) | (l.y() << 3) | l.z()] = uint8_t(in ? 1 : 0);
+    };
+    const auto split = [&](std::vector<Coord>& list) {
         const int half = size / 2;
-        for (int i = 0; i < 8; ++i)
-            modelVoxels(s, o + Coord((i >> 2) * half, ((i >> 1) & 1) * half, (i & 1) * half), half, leafOrigin, inside, st);
-        return;
+        std::vector<Coord> part;
+        for (int i = 0; i < 8; ++i) {
+            const Coord so = o + Coord((i >> 2) * half, ((i >> 1) & 1) * half, (i & 1) * half);
+            part.clear();
+            for (const Coord& c : list)
+                if (c.x() - so.x() >= 0 && c.x() - so.x() < half && c.y() - so.y() >= 0 && c.y() - so.y() < half &&
+                    c.z() - so.z() >= 0 && c.z() - so.z() < half)
+                    part.push_back(c);
+            if (!part.empty()) modelCells(s, so, half, part, leafOrigin, inside, st);
+        }
+    };
+    const Model m = modelOf(s, o, size, st);
+    const bool finite = std::isfinite(m.H);
+    if (!finite && size > 1) { split(cells); return; }
+    const int u = finite ? m.uniform(size) : -1;
+    std::vector<Coord> rest; // undecided
+    for (const Coord& c : cells) {
+        const int v = u >= 0 ? u : (size == 1 ? (insideByEstimate(m.w) ? 1 : 0) : (finite ? m.at(Vec3d(c.x(), c.y(), c.z())) : -1));
+        if (v < 0) rest.push_back(c);
+        else put(c, v == 1);
     }
-    const int u = std::isfinite(m.H) ? m.uniform(size) : -1;
-    std::vector<Coord> rest; // undecided: their own estimates, in one traversal
-    for (int x = 0; x < size; ++x)
-        for (int y = 0; y < size; ++y)
-            for (int z = 0; z < size; ++z) {
-                const Coord c = o + Coord(x, y, z);
-                const Vec3d p(c.x(), c.y(), c.z());
-                const int v = u >= 0 ? u : (size == 1 ? (insideByEstimate(m.w) ? 1 : 0) : (std::isfinite(m.H) ? m.at(p) : -1));
-                const Coord l = c - leafOrigin;
-                if (v < 0) rest.push_back(c);
-                else inside[(l.x() << 6) | (l.y() << 3) | l.z()] = uint8_t(v);
-            }
     if (rest.empty()) return;
+    if (size > 2 && rest.size() > kSplitVoxels) { split(rest); return; }
     std::vector<Vec3d> pts(rest.size());
     std::vector<double> w(rest.size());
     for (size_t i = 0; i < rest.size(); ++i) pts[i] = s.world(Vec3d(rest[i].x(), rest[i].y(), rest[i].z()));
     s.fwn.evaluate(pts.data(), pts.size(), w.data());
     st.evaluations += rest.size();
     st.individual += rest.size();
-    for (size_t i = 0; i < rest.size(); ++i) {
-        const Coord l = rest[i] - leafOrigin;
-        inside[(l.x() << 6) | (l.y() << 3) | l.z()] = insideByEstimate(w[i]) ? 1 : 0;
-    }
+    for (size_t i = 0; i < rest.size(); ++i) put(rest[i], insideByEstimate(w[i]));
+}
+
+/// Signs every voxel of the surface-free cube [o, o + size)³ (size <= 8) into inside[] (see
+/// modelCells()).
+void modelVoxels(const Signer& s, const Coord& o, int size, const Coord& leafOrigin, uint8_t* inside, WindingSignStats& st)
+{
+    std::vector<Coord> cells;
+    cells.reserve(size_t(size) * size * size);
+    for (int x = 0; x < size; ++x)
+        for (int y = 0; y < size; ++y)
+            for (int z = 0; z < size; ++z) cells.push_back(o + Coord(x, y, z));
+    modelCells(s, o, size, cells, leafOrigin, inside, st);
 }
 
 /// Where a node's tiles are set: uniform cubes (a whole number of tiles, or part of one tile

@@ -286,6 +286,36 @@ TEST(FastWindingNumber, GradientIsTheBiotSavartFieldAndItsBoundsHold)
     }
 }
 
+TEST(FastWindingNumber, FastGradientIsWithinItsBoundOfTheExactOne)
+{
+    // the edge tree's gradient (far subtrees as one current element) against the exact sum over
+    // every edge: within its reported bound everywhere, exact near the boundary (no subtree is
+    // far), and the bound small far away (closed loops of current fall off as 1/r^3)
+    TriangleMesh m = sphereWithHole(4);
+    append(m, openSheet());
+    const FastWindingNumber fwn(m);
+    ASSERT_GT(fwn.currentEdges(), 16u); // deep enough an edge tree to have far subtrees
+    std::mt19937_64 rng(11);
+    double worstRatio = 0.0, farBound = 0.0;
+    int approximated = 0;
+    for (int i = 0; i < 400; ++i) {
+        Vec3d q;
+        const double r = i < 200 ? 1.6 : 6.0;
+        for (int k = 0; k < 3; ++k) q[k] = std::uniform_real_distribution<double>(-r, r)(rng);
+        double err = -1.0;
+        const Vec3d fast = fwn.gradient(q, err), exact = fwn.gradient(q);
+        ASSERT_GE(err, 0.0);
+        const double diff = (fast - exact).length();
+        EXPECT_LE(diff, err + 1e-12 * (1.0 + exact.length())) << "at " << q;
+        if (err > 1e-12) { ++approximated; worstRatio = std::max(worstRatio, diff / err); }
+        if (i >= 200 && q.length() > 4.0) farBound = std::max(farBound, err / std::max(exact.length(), 1e-300));
+    }
+    EXPECT_GT(approximated, 50); // the far field was used
+    EXPECT_LT(worstRatio, 1.0);
+    std::printf("fast gradient: %d of 400 points used far subtrees; worst |error| / bound %.3g; far bound / |grad| %.3g\n",
+                approximated, worstRatio, farBound);
+}
+
 TEST(FastWindingNumber, BadOptionsAreRefused)
 {
     const TriangleMesh m = makeIcosphere(Vec3d(0.0), 1.0, 1);

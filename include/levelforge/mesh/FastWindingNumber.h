@@ -134,6 +134,11 @@ public:
     ///        (exact per segment, O(currentEdges())). Zero for a mesh without boundary current.
     ///        Smooth across the surface (w jumps there, its gradient does not).
     Vec3d gradient(const Vec3d& p) const;
+    /// @brief ∇w at @p p in O(log) time: boundary-current edges far from @p p (a subtree of the
+    ///        edge tree farther than twice its box diagonal) as one current element at the box
+    ///        centre; @p errorBound receives a rigorous bound of |result − gradient(p)| (the
+    ///        terms' variation over each box, |∇(r/|r|³)| <= 2/|r|³; 1/world units).
+    Vec3d gradient(const Vec3d& p, double& errorBound) const;
 
     /// @brief Upper bound of the operator norm of the Hessian of w over the box [lo, hi] (world
     ///        units; the result in 1/world units²): (1/4π) Σ_e |I_e| min(2 L_e/δ_e³, 4/δ_e²).
