@@ -21,7 +21,9 @@
 //    band samples inactive in OpenVDB's grid;
 //  - timing (at --res, default 512, best of --repeat): meshToLevelSet with SignMode::Pseudonormal
 //    and SignMode::Winding, and with --fill the auto sign with and without fillInterior; the
-//    ratios are the cost of the winding sign and of the fill.
+//    ratios are the cost of the winding sign and of the fill;
+//  - --png out.png (with the errors): a picture of the last mesh's middle z slice at --error-res,
+//    pseudonormal | winding | OpenVDB | the exact winding number side by side (slicePicture()).
 // Output: one line per mesh and measurement, then a markdown table.
 
 #include <levelforge/core/MeshValidation.h>
@@ -33,6 +35,7 @@
 #include <openvdb/tools/MeshToVolume.h>
 
 #include "BenchLoop.h"
+#include "BenchPng.h"
 #include "BenchUtil.h"
 
 #include <tbb/blocked_range.h>
@@ -62,14 +65,74 @@ struct Args
     uint64_t samples = 3000;
     int holes = 0, subdivide = 0;
     bool openvdb = true, errors = true, timing = true, fill = false;
+    std::string png; // the slice picture of the last mesh (with the errors)
     std::vector<std::string> meshes;
 };
 
 [[noreturn]] void usage(const char* msg)
 {
     std::fprintf(stderr, "levelforge_bench_sign: %s\nusage: levelforge_bench_sign [--res N] [--error-res N] [--repeat N] "
-                         "[--samples N] [--holes K] [--subdivide L] [--no-openvdb] [--no-errors] [--no-timing] [--fill] mesh...\n", msg);
+                         "[--samples N] [--holes K] [--subdivide L] [--no-openvdb] [--no-errors] [--no-timing] [--fill] [--png out.png] mesh...\n", msg);
     std::exit(2);
+}
+
+/// The slice picture (--png): the plane z = middle of the mesh's bounding box at the error
+/// resolution, four panels left to right: levelforge pseudonormal, levelforge winding, OpenVDB
+/// (flood fill), and the exact winding number. Inside (value < 0, or |w| > 1/2 for the last
+/// panel) blue, outside light grey, darker with the distance to the surface; a pixel whose sign
+/// disagrees with the exact winding number where it is decisive (||w| - 1/2| > 0.25) red.
+void slicePicture(const std::string& path, const TriangleMesh& mesh, const openvdb::FloatGrid* grids[3],
+                  const ExactReference& ref)
+{
+    const openvdb::FloatGrid& g = *grids[1];
+    const BBoxd b = mesh.bounds();
+    const Vec3d grow = (b.max() - b.min()) * 0.08;
+    const openvdb::Coord lo = openvdb::Coord::floor(g.worldToIndex(b.min() - grow));
+    const openvdb::Coord hi = openvdb::Coord::ceil(g.worldToIndex(b.max() + grow));
+    const int z = openvdb::Coord::round(g.worldToIndex(0.5 * (b.min() + b.max()))).z();
+    const int nx = hi.x() - lo.x() + 1, ny = hi.y() - lo.y() + 1;
+    const int scale = std::max(1, 360 / std::max(nx, ny)), gap = 6;
+    const int W = 4 * nx * scale + 3 * gap, H = ny * scale;
+    std::vector<double> w(size_t(nx) * ny);
+    tbb::parallel_for(tbb::blocked_range<int>(0, ny), [&](const tbb::blocked_range<int>& r) {
+        for (int y = r.begin(); y != r.end(); ++y)
+            for (int x = 0; x < nx; ++x)
+                w[size_t(y) * nx + x] = ref.windingNumber(g.indexToWorld(openvdb::Coord(lo.x() + x, lo.y() + y, z)));
+    });
+    const double bg = std::abs(double(g.background()));
+    std::vector<unsigned char> img(size_t(W) * H * 3, 255);
+    for (int panel = 0; panel < 4; ++panel) {
+        const openvdb::FloatGrid* grid = panel < 3 ? grids[panel] : nullptr;
+        if (panel < 3 && !grid) continue;
+        for (int y = 0; y < ny; ++y)
+            for (int x = 0; x < nx; ++x) {
+                const double wx = w[size_t(y) * nx + x];
+                const bool truth = std::abs(wx) > 0.5, decisive = std::abs(std::abs(wx) - 0.5) > 0.25;
+                double v = 0.0;
+                bool inside;
+                if (grid) {
+                    v = grid->tree().getValue(openvdb::Coord(lo.x() + x, lo.y() + y, z));
+                    inside = v < 0.0;
+                } else {
+                    inside = truth;
+                    v = inside ? -bg : bg;
+                }
+                const double t = std::min(1.0, std::abs(v) / std::max(bg, 1e-300)); // 0 on the surface
+                unsigned char c[3];
+                if (grid && v != 0.0 && decisive && inside != truth) { c[0] = 220; c[1] = 30; c[2] = 30; }
+                else if (inside) { c[0] = (unsigned char)(40 + 60 * t); c[1] = (unsigned char)(90 + 60 * t); c[2] = (unsigned char)(170 + 60 * t); }
+                else { c[0] = c[1] = c[2] = (unsigned char)(150 + 90 * t); }
+                for (int sy = 0; sy < scale; ++sy)
+                    for (int sx = 0; sx < scale; ++sx) {
+                        const int px = panel * (nx * scale + gap) + x * scale + sx, py = (ny - 1 - y) * scale + sy;
+                        unsigned char* o = &img[(size_t(py) * W + px) * 3];
+                        o[0] = c[0]; o[1] = c[1]; o[2] = c[2];
+                    }
+            }
+    }
+    levelforge_bench::writePng(path, W, H, img);
+    std::printf("wrote %s: slice z = %d (index), %d x %d voxels, panels pseudonormal | winding | OpenVDB | exact winding number\n",
+                path.c_str(), z, nx, ny);
 }
 
 Args parse(int argc, char** argv)
@@ -91,6 +154,7 @@ Args parse(int argc, char** argv)
         else if (s == "--no-errors") a.errors = false;
         else if (s == "--no-timing") a.timing = false;
         else if (s == "--fill") a.fill = true;
+        else if (s == "--png") a.png = next();
         else if (s.rfind("--", 0) == 0) usage(("unknown option " + s).c_str());
         else a.meshes.push_back(s);
     }
@@ -244,6 +308,7 @@ int main(int argc, char** argv)
                         (unsigned long long)e.volumeDecisive, (unsigned long long)volume.size(), (unsigned long long)e.volumeErr[0],
                         (unsigned long long)e.volumeErr[1], ov ? std::to_string(e.volumeErr[2]).c_str() : "-");
             std::fflush(stdout);
+            if (!args.png.empty() && &path == &args.meshes.back()) slicePicture(args.png, mesh, grids, ref);
         }
         if (args.timing) {
             MeshToLevelSetOptions o;

@@ -2,6 +2,7 @@
 // levelforge operator `expand`: widen (or narrow) the band of a level set by fast sweeping.
 // Houdini: *VDB Activate SDF* / *VDB Reshape SDF* (dilate); OpenVDB: tools::dilateSdf.
 #include "Interrupt.h"
+#include "LevelSetInput.h"
 #include "Operator.h"
 #include "OperatorText.h"
 
@@ -22,23 +23,6 @@ namespace {
 const char* const kMethod = "zhao2005-fast-sweeping";
 const char* const kVectorMethod = "satherley-jones-vcvdt8";
 
-/// The level set to expand: the one named `name`, or the first float level set.
-openvdb::FloatGrid::Ptr pickGrid(const openvdb::GridPtrVec& grids, const std::string& path,
-                                 const std::string& name)
-{
-    for (const auto& g : grids) {
-        auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(g);
-        if (!f) continue;
-        if (name.empty() ? f->getGridClass() == openvdb::GRID_LEVEL_SET : f->getName() == name) {
-            return f;
-        }
-    }
-    if (!name.empty()) {
-        throw InvalidArgumentError(path + ": no float grid named '" + name + "'");
-    }
-    throw InvalidArgumentError(path + ": no float level-set grid (class GRID_LEVEL_SET) found");
-}
-
 void cookExpand(OperatorArgs& args)
 {
     using Clock = std::chrono::steady_clock;
@@ -53,7 +37,7 @@ void cookExpand(OperatorArgs& args)
         grids = readGrids(input);
     }
     openvdb::FloatGrid::Ptr grid =
-        pickGrid(*grids, input, args.has("grid-name") ? args.getString("grid-name") : "");
+        pickLevelSet(*grids, input, args.has("grid-name") ? args.getString("grid-name") : "");
 
     ExpandLevelSetOptions opt;
     opt.exteriorWidth = args.getFloat("exterior-width");

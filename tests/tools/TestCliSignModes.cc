@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // `levelforge mesh-to-sdf --sign ... --fill-interior` end to end (issue 16): real processes,
 // real files.
+#include "CliRunner.h"
 #include "TestUtil.h"
 
 #include <levelforge/io/MeshIO.h>
@@ -16,7 +17,6 @@
 #include <string>
 #include <vector>
 
-#include <sys/wait.h>
 
 namespace fs = std::filesystem;
 using levelforge_test::scratchDir;
@@ -27,38 +27,9 @@ using levelforge_test::countLines;
 
 namespace {
 
-std::string readText(const fs::path& path)
-{
-    std::ifstream in(path);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
+using levelforge_test::CliRun;
 
-std::string quote(const std::string& s)
-{
-    std::string q = "'";
-    for (char c : s) q += (c == '\'') ? std::string("'\\''") : std::string(1, c);
-    return q + "'";
-}
-
-struct CliRun
-{
-    int code = -1;
-    std::string out, err, command;
-};
-
-CliRun runCli(const fs::path& dir, const std::vector<std::string>& args)
-{
-    CliRun r;
-    r.command = quote(LEVELFORGE_CLI_PATH);
-    for (const std::string& a : args) r.command += " " + quote(a);
-    const fs::path outFile = dir.parent_path() / (dir.filename().string() + ".stdout");
-    const fs::path errFile = dir.parent_path() / (dir.filename().string() + ".stderr");
-    const int status = std::system((r.command + " >" + quote(outFile.string()) + " 2>" + quote(errFile.string())).c_str());
-    r.code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
-    r.out = readText(outFile);
-    r.err = readText(errFile);
-    return r;
-}
+CliRun runCli(const fs::path& dir, const std::vector<std::string>& args) { return levelforge_test::runLevelforge(dir, args); }
 
 /// The unit icosphere without its cap z > 0.7, as an OBJ file in `dir`.
 std::string writeOpenSphere(const fs::path& dir)

@@ -1,0 +1,58 @@
+// SPDX-License-Identifier: Apache-2.0
+// Runs the `levelforge` program (LEVELFORGE_CLI_PATH) as a real process with stdout and stderr
+// captured, for the end-to-end CLI tests.
+#pragma once
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include <sys/wait.h>
+
+namespace levelforge_test {
+
+/// The whole text of a file ("" when it cannot be read).
+inline std::string readText(const std::filesystem::path& path)
+{
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+/// @p s quoted for /bin/sh.
+inline std::string shellQuote(const std::string& s)
+{
+    std::string q = "'";
+    for (char c : s) q += (c == '\'') ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+}
+
+/// What one run of the program gave.
+struct CliRun
+{
+    int code = -1;
+    std::string out, err, command;
+};
+
+#ifdef LEVELFORGE_CLI_PATH
+/// Runs `levelforge <args>`; stdout and stderr go through files next to @p dir
+/// (dir.stdout, dir.stderr).
+inline CliRun runLevelforge(const std::filesystem::path& dir, const std::vector<std::string>& args)
+{
+    CliRun r;
+    r.command = shellQuote(LEVELFORGE_CLI_PATH);
+    for (const std::string& a : args) r.command += " " + shellQuote(a);
+    const std::filesystem::path outFile = dir.parent_path() / (dir.filename().string() + ".stdout");
+    const std::filesystem::path errFile = dir.parent_path() / (dir.filename().string() + ".stderr");
+    const int status =
+        std::system((r.command + " >" + shellQuote(outFile.string()) + " 2>" + shellQuote(errFile.string())).c_str());
+    r.code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
+    r.out = readText(outFile);
+    r.err = readText(errFile);
+    return r;
+}
+#endif
+
+} // namespace levelforge_test
