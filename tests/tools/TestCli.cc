@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // End-to-end tests of the `levelforge` executable: real processes, real files.
+#include "CliRunner.h"
 #include "TestUtil.h"
 
 #include <levelforge/io/MeshIO.h>
@@ -32,40 +33,10 @@ using levelforge_test::countLines;
 
 namespace {
 
-std::string readText(const fs::path& path)
-{
-    std::ifstream in(path);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-std::string quote(const std::string& s)
-{
-    std::string q = "'";
-    for (char c : s) q += (c == '\'') ? std::string("'\\''") : std::string(1, c);
-    return q + "'";
-}
-
-struct CliRun
-{
-    int code = -1;
-    std::string out, err, command;
-};
-
-/// Runs `levelforge <args>` with stdout and stderr captured in files under `dir`.
-CliRun runLevelforge(const fs::path& dir, const std::vector<std::string>& args)
-{
-    CliRun r;
-    r.command = quote(LEVELFORGE_CLI_PATH);
-    for (const std::string& a : args) r.command += " " + quote(a);
-    const fs::path outFile = dir.parent_path() / (dir.filename().string() + ".stdout");
-    const fs::path errFile = dir.parent_path() / (dir.filename().string() + ".stderr");
-    const int status = std::system(
-        (r.command + " >" + quote(outFile.string()) + " 2>" + quote(errFile.string())).c_str());
-    r.code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
-    r.out = readText(outFile);
-    r.err = readText(errFile);
-    return r;
-}
+using levelforge_test::CliRun;
+using levelforge_test::readText;
+using levelforge_test::runLevelforge;
+std::string quote(const std::string& s) { return levelforge_test::shellQuote(s); }
 
 std::vector<std::string> listDir(const fs::path& dir)
 {
