@@ -17,6 +17,8 @@
 #include <limits>
 #include <map>
 #include <sstream>
+#include <unordered_map>
+#include <cstring>
 
 namespace levelforge {
 
@@ -88,10 +90,22 @@ inline double boxBoxDist2(const double* alo, const double* ahi, const Vec3d& blo
     return d2;
 }
 
+/// Hash of a position's bit pattern (the welding of coincident vertices).
+struct PositionHashImpl
+{
+    size_t operator()(const std::array<uint64_t, 3>& k) const
+    {
+        uint64_t h = 1469598103934665603ull;
+        for (uint64_t x : k) h = (h ^ x) * 1099511628211ull ^ (x >> 29);
+        return size_t(h);
+    }
+};
+
 } // namespace fwn_internal
 
 struct FastWindingNumber::Impl
 {
+    using PositionHash = fwn_internal::PositionHashImpl;
     using Node = fwn_internal::Node;
     FastWindingNumberOptions opt;
     std::vector<double> tri;            // 9 doubles per triangle, leaf order
@@ -342,12 +356,30 @@ struct FastWindingNumber::Impl
     // ---------------------------------------------------------------- boundary currents
     void buildEdges(const TriangleMesh& mesh, const std::vector<uint8_t>& ok)
     {
-        // half-edges bucketed by their smaller vertex (counting sort): (other vertex, direction)
+        // Vertices at exactly the same position are one vertex here: the seams of unwelded
+        // patches (a teapot's, a kit-bashed model's) carry opposite currents on coincident
+        // segments, whose fields cancel exactly; keyed apart they would count as boundary
+        // edges and make the gradient bounds useless along every seam.
         const size_t nv = mesh.points.size(), nt = mesh.triangles.size();
+        std::vector<uint32_t> canon(nv);
+        {
+            std::unordered_map<std::array<uint64_t, 3>, uint32_t, PositionHash> seen;
+            seen.reserve(nv);
+            for (uint32_t i = 0; i < nv; ++i) {
+                std::array<uint64_t, 3> key;
+                for (int k = 0; k < 3; ++k) {
+                    const double c = mesh.points[i][k] == 0.0 ? 0.0 : mesh.points[i][k]; // -0 is 0
+                    std::memcpy(&key[k], &c, sizeof(double));
+                }
+                canon[i] = seen.emplace(key, i).first->second;
+            }
+        }
+        // half-edges bucketed by their smaller vertex (counting sort): (other vertex, direction)
         std::vector<uint32_t> first(nv + 1, 0);
         for (size_t t = 0; t < nt; ++t) {
             if (!ok[t]) continue;
-            const Vec3I& v = mesh.triangles[t];
+            const Vec3I& m = mesh.triangles[t];
+            const uint32_t v[3] = {canon[m[0]], canon[m[1]], canon[m[2]]};
             for (int k = 0; k < 3; ++k) ++first[std::min(v[k], v[(k + 1) % 3]) + 1];
         }
         for (size_t i = 0; i < nv; ++i) first[i + 1] += first[i];
@@ -355,7 +387,8 @@ struct FastWindingNumber::Impl
         std::vector<uint32_t> fill(first.begin(), first.end() - 1);
         for (size_t t = 0; t < nt; ++t) {
             if (!ok[t]) continue;
-            const Vec3I& v = mesh.triangles[t];
+            const Vec3I& m = mesh.triangles[t];
+            const uint32_t v[3] = {canon[m[0]], canon[m[1]], canon[m[2]]};
             for (int k = 0; k < 3; ++k) {
                 const uint32_t a = v[k], b = v[(k + 1) % 3];
                 half[fill[std::min(a, b)]++] = {std::max(a, b), a < b ? 1 : -1};

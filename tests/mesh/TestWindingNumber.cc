@@ -316,6 +316,27 @@ TEST(FastWindingNumber, FastGradientIsWithinItsBoundOfTheExactOne)
                 approximated, worstRatio, farBound);
 }
 
+TEST(FastWindingNumber, UnweldedSeamsCarryNoCurrent)
+{
+    // a closed sphere cut into two patches whose seam vertices are duplicated (a teapot's or a
+    // kit-bashed model's seams): the coincident seam edges carry opposite currents, which cancel
+    const TriangleMesh s = makeIcosphere(Vec3d(0.0), 1.0, 3);
+    TriangleMesh m;
+    m.points = s.points;
+    const uint32_t n = uint32_t(s.points.size());
+    m.points.insert(m.points.end(), s.points.begin(), s.points.end()); // copies: index + n
+    for (const Vec3I& t : s.triangles) {
+        const bool upper = (s.points[t[0]] + s.points[t[1]] + s.points[t[2]])[2] > 0.0;
+        m.triangles.push_back(upper ? Vec3I(t[0] + n, t[1] + n, t[2] + n) : t);
+    }
+    EXPECT_GT(validateMesh(m).boundaryEdges, 0u); // by index, the seam is a boundary
+    const FastWindingNumber fwn(m);
+    EXPECT_EQ(fwn.currentEdges(), 0u);
+    EXPECT_NEAR(fwn(Vec3d(0.1, 0.2, 0.05)), 1.0, 1e-2);
+    EXPECT_NEAR(fwn(Vec3d(0.0, 0.0, 1.5)), 0.0, 1e-2);
+    EXPECT_EQ(fwn.gradientBound(Vec3d(-0.5), Vec3d(0.5)), 0.0);
+}
+
 TEST(FastWindingNumber, BadOptionsAreRefused)
 {
     const TriangleMesh m = makeIcosphere(Vec3d(0.0), 1.0, 1);

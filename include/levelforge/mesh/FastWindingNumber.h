@@ -36,7 +36,9 @@
 ///    "Sign modes");
 ///  - gradientBound() is a rigorous upper bound of |∇w| over a box, from the Biot–Savart law:
 ///    off the surface, ∇w is the magnetic field (divided by the current) of the mesh's boundary
-///    curve, each undirected edge carrying the current (uses a→b) − (uses b→a). For a closed,
+///    curve, each undirected edge carrying the current (uses a→b) − (uses b→a), vertices at
+///    exactly the same position counted as one (the coincident edges of an unwelded seam carry
+///    opposite currents whose fields cancel exactly). For a closed,
 ///    consistently oriented mesh every current is 0 and w is piecewise constant; otherwise
 ///    |∇w(q)| ≤ (1/4π) Σ_e |I_e| min(L_e/δ_e², π/δ_e), δ_e the distance from q to edge e;
 ///  - gradient() is exact (the closed-form field of each straight edge), hessianBound() a
