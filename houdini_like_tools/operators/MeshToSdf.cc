@@ -83,8 +83,11 @@ void cookMeshToSdf(OperatorArgs& args)
     std::ostream& out = args.out();
     std::ostream& err = args.err();
 
-    // Fail fast, before any work, when the output cannot be written.
+    // Fail fast, before any work, when the output cannot be written or the reference is bad.
     checkOutputPath(output);
+    ReferenceGrid reference;
+    const bool haveReference = args.isSet("reference");
+    if (haveReference) reference = readReferenceGrid(args.getString("reference"));
 
     MeshReadInfo info;
     const TriangleMesh mesh = readMeshInput(input, &info);
@@ -103,6 +106,17 @@ void cookMeshToSdf(OperatorArgs& args)
     }
     MeshToSdfOptions options;
     readGridParams(args, options);
+    if (args.isSet("fog-grid")) options.fogGridName = args.getString("fog-grid");
+    if (args.isSet("primitive-index-grid")) options.primitiveIndexGridName = args.getString("primitive-index-grid");
+    if (haveReference) {
+        // the reference's transform, and its band widths unless given here
+        options.transform = reference.transform;
+        const double toUnits = options.units == WidthUnits::World ? reference.voxelSize : 1.0;
+        if (!args.isSet("exterior-band") && reference.exteriorBandVoxels > 0.0)
+            options.exteriorWidth = reference.exteriorBandVoxels * toUnits;
+        if (!args.isSet("interior-band") && reference.interiorBandVoxels > 0.0)
+            options.interiorWidth = reference.interiorBandVoxels * toUnits;
+    }
     options.sign = signModeFromString(args.getString("sign"));
     options.fillInterior = args.getBool("fill-interior");
     options.windingAccuracy = args.getFloat("winding-accuracy");
@@ -126,12 +140,13 @@ void cookMeshToSdf(OperatorArgs& args)
     options.interrupter = &progress;
 
     MeshToSdfStats stats;
-    const openvdb::FloatGrid::Ptr grid = meshToSdf(mesh, options, &stats);
+    const MeshToSdfGrids grids = meshToSdfGrids(mesh, options, &stats);
+    const openvdb::FloatGrid::Ptr grid = grids.sdf;
     const double convertSeconds = stats.seconds;
 
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
+    writeGridsAtomic(output, grids.all(), fileMeta); // every grid in one file, atomically
     const double totalSeconds = secondsSince(t0);
 
     const double voxelSize = grid->voxelSize()[0];
@@ -139,7 +154,16 @@ void cookMeshToSdf(OperatorArgs& args)
         << "  grid '" << grid->getName() << "': voxel size " << fmt("%.6g", voxelSize)
         << " (world units), " << withThousands(grid->activeVoxelCount()) << " active voxels\n"
         << "  band: " << fmt("%g", stats.exteriorBandVoxels) << " voxels outside, "
-        << fmt("%g", stats.interiorBandVoxels) << " voxels inside\n"
+        << fmt("%g", stats.interiorBandVoxels) << " voxels inside\n";
+    if (haveReference)
+        out << "  transform: from reference " << reference.path << " (grid '" << reference.name << "')\n";
+    if (grids.fog)
+        out << "  fog grid '" << grids.fog->getName() << "': " << withThousands(grids.fog->activeVoxelCount())
+            << " active voxels (tiles by volume)\n";
+    if (grids.primitiveIndex)
+        out << "  primitive index grid '" << grids.primitiveIndex->getName() << "': "
+            << withThousands(grids.primitiveIndex->activeVoxelCount()) << " active voxels\n";
+    out
         << "  mesh: " << withThousands(mesh.triangleCount()) << " triangles, "
         << withThousands(mesh.vertexCount()) << " vertices\n"
         << "  sign: " << toString(stats.sign) << " (" << stats.signReason << ")"
@@ -230,6 +254,24 @@ LEVELFORGE_REGISTER_OPERATOR(
                                "beta times their radius use their expansion; larger: more exact, slower)")
                    .defaultValue(2.0)
                    .range(1.0, 100.0, Bound::Exclusive))
+        .param(Param::string("fog-grid", "Fog Grid",
+                             "Also write a fog (density) grid of this name (Houdini's Build Fog): 1 inside "
+                             "beyond the interior band, ramping linearly to 0 across it "
+                             "(clamp(-distance / interior band width, 0, 1)), 0 and inactive outside. Not "
+                             "with --sign unsigned"))
+        .param(Param::string("reference", "Reference VDB",
+                             "Take the transform (voxel size, offset, orientation) from the first float grid "
+                             "of this .vdb file, so the grids line up voxel for voxel, and its band widths "
+                             "(levelforge metadata, else background / voxel size of a level set) unless "
+                             "--exterior-band / --interior-band are given. Its transform must be linear with "
+                             "a uniform scale")
+                   .exclusiveWith("voxel-size")
+                   .exclusiveWith("voxel-count"))
+        .param(Param::string("primitive-index-grid", "Primitive Index Grid",
+                             "Also write an Int32 grid of this name holding, for every active voxel, the "
+                             "0-based index of the closest input face (the polygon before triangulation, "
+                             "in file order); background -1. Needs --method chang, --expansion none and no "
+                             "--fill-interior"))
         .param(Param::flag("quiet", "Quiet", "Print no progress on stderr"))
         .param(Param::flag("report", "Report",
                            "Print the mesh validation summary and conversion statistics"))
@@ -240,6 +282,9 @@ LEVELFORGE_REGISTER_OPERATOR(
         .example("levelforge mesh-to-sdf bunny.obj bunny.vdb --exterior-band 60 --expansion vector")
         .example("levelforge mesh-to-sdf scan.obj scan.vdb --voxel-count 512 --sign winding --fill-interior")
         .example("levelforge mesh-to-sdf cloth.obj cloth_udf.vdb --voxel-size 0.01 --sign unsigned")
+        .example("levelforge mesh-to-sdf bunny.obj bunny.vdb --voxel-size 0.01 --fog-grid density "
+                 "--primitive-index-grid primitive")
+        .example("levelforge mesh-to-sdf prop.obj prop.vdb --reference set.vdb")
         .cook(cookMeshToSdf));
 
 } // namespace levelforge::ops

@@ -421,14 +421,19 @@ TriangleMesh withoutDegenerateTriangles(const TriangleMesh& mesh, uint64_t* remo
     out.source = mesh.source;
     out.triangles.reserve(mesh.triangles.size());
     const size_t nV = mesh.points.size();
-    for (const Vec3I& t : mesh.triangles) {
+    out.faceIndex.reserve(mesh.triangles.size());
+    for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+        const Vec3I& t = mesh.triangles[i];
         const bool inRange = t[0] < nV && t[1] < nV && t[2] < nV;
         if (inRange && (meshvalidation_internal::collapsed(t) ||
                         isDegenerateTriangle(mesh.points[t[0]], mesh.points[t[1]], mesh.points[t[2]]))) {
             continue;
         }
         out.triangles.push_back(t);
+        out.faceIndex.push_back(mesh.sourceFace(i)); // the input face stays known
     }
+    if (mesh.faceIndex.empty() && out.triangles.size() == mesh.triangles.size())
+        std::vector<uint32_t>().swap(out.faceIndex); // still "triangle i is face i"
     if (removed) *removed = mesh.triangles.size() - out.triangles.size();
     return out;
 }

@@ -157,6 +157,8 @@ void assemble(const std::string& path, Importer& imp, Prescan& pre, TriangleMesh
     }
     mesh.triangles.clear();
     mesh.triangles.reserve(expected);
+    mesh.faceIndex.clear();
+    mesh.faceIndex.reserve(expected);
     uint64_t dropped = 0;
     pos = 0;
     for (uint64_t f = 0; f < imp.mFaceCount; ++f) {
@@ -175,6 +177,7 @@ void assemble(const std::string& path, Importer& imp, Prescan& pre, TriangleMesh
                 ++dropped;
             } else {
                 mesh.triangles.emplace_back(uint32_t(c[0]), uint32_t(c[1]), uint32_t(c[2]));
+                mesh.faceIndex.push_back(uint32_t(f));
             }
             continue;
         }
@@ -201,6 +204,7 @@ void assemble(const std::string& path, Importer& imp, Prescan& pre, TriangleMesh
         }
         if (poly.size() == 3) {
             mesh.triangles.emplace_back(poly[0], poly[1], poly[2]);
+            mesh.faceIndex.push_back(uint32_t(f));
             continue;
         }
         ++info.polygons;
@@ -212,7 +216,12 @@ void assemble(const std::string& path, Importer& imp, Prescan& pre, TriangleMesh
             mesh.triangles.erase(std::remove_if(mesh.triangles.begin() + std::ptrdiff_t(first),
                                      mesh.triangles.end(), collapsed), mesh.triangles.end());
         }
+        mesh.faceIndex.resize(mesh.triangles.size(), uint32_t(f));
     }
+    // Triangle i is face i (no polygon, no dropped face): leave faceIndex empty.
+    bool identity = mesh.faceIndex.size() == mesh.triangles.size();
+    for (size_t t = 0; identity && t < mesh.faceIndex.size(); ++t) identity = mesh.faceIndex[t] == t;
+    if (identity) std::vector<uint32_t>().swap(mesh.faceIndex);
     const uint64_t received = imp.mFaceCount;
     info.fileFaces = pre.haveFaces ? std::max(pre.faces, received) : received;
     info.droppedFaces = dropped + (info.fileFaces - received);

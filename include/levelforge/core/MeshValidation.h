@@ -132,7 +132,7 @@ void requireUsableMesh(const TriangleMesh& mesh);
 /// (requireUsableMesh() reports them).
 /// @param[in]  mesh     the input mesh
 /// @param[out] removed  optional: the number of triangles removed (collapsed or zero-area)
-/// @return the filtered copy
+/// @return the filtered copy (TriangleMesh::faceIndex, when present, filtered in step)
 TriangleMesh withoutDegenerateTriangles(const TriangleMesh& mesh, uint64_t* removed = nullptr);
 
 /// @brief True when triangle (a, b, c) is degenerate by validateMesh()'s test:

@@ -26,10 +26,19 @@ struct TriangleMesh
     std::vector<Vec3d> points;     ///< vertex positions, world units
     std::vector<Vec3I> triangles;  ///< vertex indices, counter-clockwise seen from outside
     std::string source;            ///< file path or a description of the generator (for messages)
+    /// Optional: for each triangle, the 0-based index of the input face (polygon) it came from,
+    /// before triangulation (readMesh() fills it when a file face became several triangles or
+    /// was dropped). Empty: triangle i is face i. When not empty it has one entry per triangle,
+    /// and every function that reorders or filters triangles keeps it in step (see sourceFace()).
+    std::vector<uint32_t> faceIndex;
 
     size_t vertexCount() const { return points.size(); }
     size_t triangleCount() const { return triangles.size(); }
     bool empty() const { return triangles.empty(); }
+
+    /// @brief The input face (polygon) triangle @p t came from: faceIndex[t], or @p t when
+    ///        faceIndex is empty.
+    uint32_t sourceFace(size_t t) const { return faceIndex.empty() ? uint32_t(t) : faceIndex[t]; }
 
     /// @brief Bounding box of the vertices that triangles use (world units).
     /// @return the box; an empty box if there are no triangles

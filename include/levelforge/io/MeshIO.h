@@ -21,6 +21,11 @@
 ///    (OpenMesh's OBJ reader also removes every repeated corner of a polygon, keeping the first
 ///    occurrence, before we see it.) Zero-area faces with three distinct corners are kept;
 ///    validateMesh() reports them;
+///  - TriangleMesh::faceIndex says which face each triangle came from: the 0-based index of the
+///    face among the faces of the file, in file order (dropped faces keep their number, so the
+///    indices are those of the file; faces OpenMesh's OBJ and STL readers drop before we see them
+///    are the exception). It is left empty when triangle i is face i (a file of triangles only,
+///    none dropped);
 ///  - the file order of vertices (OBJ, OFF, PLY) and of faces is kept; STL has no shared vertices,
 ///    OpenMesh's STL reader merges corners with bit-identical coordinates (0 and -0 count as equal);
 ///  - OpenMesh hands coordinates over in single precision. For OBJ, OFF and PLY the positions are

@@ -32,7 +32,28 @@
 ///   4. with fillInterior every inside voxel is active: exact in the band, −background deeper
 ///      (active tiles where a whole tile is inside);
 ///   5. the grid is stamped with the levelforge metadata (io/VdbIO.h: band widths in voxels,
-///      source, generator, method; kSignMetadata; kFillInteriorMetadata when filled).
+///      source, generator, method; kSignMetadata; kFillInteriorMetadata when filled);
+///   6. optional extra outputs of meshToSdfGrids() (meshToSdf() makes only the level set):
+///      - a fog volume (MeshToSdfOptions::fogGridName; Houdini's *Build Fog*): sdfToFog() of the
+///        level set with the interior band as the ramp (levelset/SdfToFog.h);
+///      - a primitive index grid (MeshToSdfOptions::primitiveIndexGridName): an Int32Grid that
+///        holds, for every active voxel of the level set, the input face (polygon, before
+///        triangulation: TriangleMesh::sourceFace()) of the triangle that decided its exact
+///        distance — the closest face, exactly (ties between faces at the same distance go to
+///        either). Only the exact band knows its closest triangles, so this needs
+///        BandMethod::Chang, Expansion::None and no fillInterior (InvalidArgumentError
+///        otherwise: fast sweeping carries no triangle, the vector expansion's triangle is an
+///        upper bound that is not always the closest, the scan method keeps no triangle, and
+///        filled voxels deeper than the band were never searched).
+///
+/// The grid's transform: by default a linear transform of the resolved voxel size (voxel ijk
+/// centred at world ijk × voxelSize). MeshToSdfOptions::transform replaces it (and voxelSize /
+/// voxelCount) by any linear transform with a uniform scale, e.g. that of a reference grid
+/// (readReferenceGrid()), so the voxel centres coincide with the reference's: the mesh is
+/// moved into the transform's frame by the rigid motion (rotation, translation; a reflection
+/// also reverses the triangles' winding) that maps it to index space × voxel size, converted
+/// there, and the result carries the given transform. Rigid motions keep distances, so the
+/// values stay exact, in world units.
 ///
 /// The result follows OpenVDB's level-set conventions (GRID_LEVEL_SET, world-unit values,
 /// negative inside, background = exterior width in world units; inactive values ±background)
@@ -46,6 +67,7 @@
 #include <levelforge/scan/TetScanConversion.h>
 
 #include <openvdb/openvdb.h>
+#include <openvdb/math/Transform.h>
 
 #include <string>
 
@@ -100,7 +122,70 @@ struct MeshToSdfOptions : GridSpec
     double windingAccuracy = 2.0;
     /// Auto: an existing validateMesh() report of this mesh (not owned); null: validate here.
     const MeshReport* validation = nullptr;
+    /// Optional: the transform of the output grids (e.g. a reference grid's, see
+    /// readReferenceGrid()); when set it replaces voxelSize and voxelCount (the voxel size is its
+    /// scale). It must be linear with a uniform scale (rotation and translation allowed;
+    /// checkUniformLinearTransform()), else meshToSdf() throws InvalidArgumentError.
+    openvdb::math::Transform::ConstPtr transform;
+    /// meshToSdfGrids() only: the name of a fog volume to make too (see the file comment, step
+    /// 6); empty (default): none. Not with SignMode::Unsigned (a fog needs an inside).
+    std::string fogGridName;
+    /// meshToSdfGrids() only: the name of a primitive index grid (Int32) to make too (see the
+    /// file comment, step 6); empty (default): none. Needs BandMethod::Chang, Expansion::None
+    /// and no fillInterior.
+    std::string primitiveIndexGridName;
 };
+
+/// The grids meshToSdfGrids() makes (the optional ones are null unless asked for).
+struct MeshToSdfGrids
+{
+    openvdb::FloatGrid::Ptr sdf;            ///< the level set, named gridName (as meshToSdf())
+    openvdb::FloatGrid::Ptr fog;            ///< fogGridName: the fog volume (GRID_FOG_VOLUME)
+    openvdb::Int32Grid::Ptr primitiveIndex; ///< primitiveIndexGridName: closest input face, background -1
+
+    /// The grids that exist, in the order above (for writeGridsAtomic()).
+    openvdb::GridPtrVec all() const
+    {
+        openvdb::GridPtrVec v;
+        if (sdf) v.push_back(sdf);
+        if (fog) v.push_back(fog);
+        if (primitiveIndex) v.push_back(primitiveIndex);
+        return v;
+    }
+};
+
+/// What a reference grid gives a conversion (readReferenceGrid()).
+struct ReferenceGrid
+{
+    std::string path;                          ///< the file it was read from
+    std::string name;                          ///< the grid's name
+    openvdb::math::Transform::Ptr transform;   ///< its transform (checked: linear, uniform scale)
+    double voxelSize = 0.0;                    ///< world units
+    /// Band half-widths, voxels: the levelforge metadata (meta::kExteriorBandVoxels /
+    /// kInteriorBandVoxels) when present, else background / voxel size on both sides for a level
+    /// set; 0 when neither says (a fog volume without metadata).
+    double exteriorBandVoxels = 0.0;
+    double interiorBandVoxels = 0.0;
+};
+
+/// @brief Checks that @p transform is linear with a uniform scale (its index-to-world matrix is
+///        a positive multiple of an orthogonal matrix: rotation, reflection, translation allowed).
+/// @param[in] transform  the transform
+/// @param[in] what       how messages name it, e.g. "reference 'ref.vdb'"
+/// @return the voxel size (the scale, world units)
+/// @throws InvalidArgumentError naming @p what: not linear (frustum), non-uniform scale, shear,
+///         zero or non-finite scale
+double checkUniformLinearTransform(const openvdb::math::Transform& transform, const std::string& what);
+
+/// @brief Reads the first FloatGrid of a .vdb file as a reference: its transform (checked with
+///        checkUniformLinearTransform()) and band widths, for MeshToSdfOptions::transform and the
+///        widths (Houdini's *Reference VDB*).
+/// @param[in] path  the .vdb file
+/// @return what the reference gives (see ReferenceGrid)
+/// @throws IoError naming @p path: missing, unreadable, not a VDB file, corrupt
+/// @throws InvalidArgumentError naming @p path: no FloatGrid in it, or a transform that is not
+///         linear with a uniform scale
+ReferenceGrid readReferenceGrid(const std::string& path);
 
 /// What each stage did (the stage that did not run keeps its zeros).
 struct MeshToSdfStats
@@ -120,14 +205,29 @@ struct MeshToSdfStats
 
 /// @brief Converts a triangle mesh to a signed distance level set (see the file comment).
 /// @param[in]  mesh     the triangle mesh (world units); checked with requireUsableMesh()
-/// @param[in]  options  grid, band, method and expansion settings
+/// @param[in]  options  grid, band, method and expansion settings (fogGridName and
+///                      primitiveIndexGridName are ignored here: see meshToSdfGrids())
 /// @param[out] stats    optional: what each stage did
 /// @return the level set, named options.gridName, stamped with the levelforge metadata
-/// @throws InvalidArgumentError (bad options, or a combination that cannot work: winding or
+/// @throws InvalidArgumentError (bad options, a transform that is not linear with a uniform
+///         scale, or a combination that cannot work: winding or
 ///         unsigned with the scan method, unsigned with an expansion or fillInterior, winding
 ///         with fast sweeping, winding with an expansion and a band under 1 voxel), InvalidMeshError (empty mesh, NaN, bad
 ///         index), ResourceLimitError (band larger than options.maxVoxels), InterruptedError.
 openvdb::FloatGrid::Ptr meshToSdf(const TriangleMesh& mesh, const MeshToSdfOptions& options = {},
                                   MeshToSdfStats* stats = nullptr);
+
+/// @brief meshToSdf() and the optional grids of step 6 (fog volume, primitive index), all with
+///        the same transform.
+/// @param[in]  mesh     as for meshToSdf(); mesh.faceIndex, when not empty, must have one entry
+///                      per triangle (InvalidMeshError)
+/// @param[in]  options  as for meshToSdf(), with fogGridName / primitiveIndexGridName
+/// @param[out] stats    optional: what each stage did
+/// @return the level set (identical to meshToSdf()'s) and the grids asked for
+/// @throws as meshToSdf(), and InvalidArgumentError when two grid names are equal, for a fog with
+///         SignMode::Unsigned, or for a primitive index with BandMethod::Scan, an expansion or
+///         fillInterior
+MeshToSdfGrids meshToSdfGrids(const TriangleMesh& mesh, const MeshToSdfOptions& options = {},
+                              MeshToSdfStats* stats = nullptr);
 
 } // namespace levelforge
