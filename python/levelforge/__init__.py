@@ -12,8 +12,8 @@ arguments and the same defaults.
     >>> coords, values = grid.active_voxels()   # int32 (K, 3), float32 (K,)
     >>> grid.write("knot.vdb")
 
-Functions: read_mesh, write_mesh, validate_mesh, mesh_to_sdf, expand, volume_to_sdf, read_volume,
-mesh_to_adf, csg, exact_signed_distance, read_grids, write_grids. Classes: Grid, Transform, Adf.
+Functions: read_mesh, write_mesh, validate_mesh, mesh_to_sdf, expand, reshape, volume_to_sdf,
+read_volume, mesh_to_adf, csg, exact_signed_distance, read_grids, write_grids. Classes: Grid, Transform, Adf.
 Errors: Error and its subclasses InvalidArgumentError and InvalidMeshError (ValueError),
 InvalidVolumeError (ValueError), IoError (OSError), ResourceLimitError (MemoryError),
 InterruptedError. Ctrl-C during a computation raises KeyboardInterrupt.
@@ -47,6 +47,7 @@ from ._levelforge import (
     read_grids,
     read_mesh,
     read_volume,
+    reshape,
     validate_mesh,
     volume_to_sdf,
     write_grids,
@@ -80,6 +81,7 @@ __all__ = [
     "read_grids",
     "read_mesh",
     "read_volume",
+    "reshape",
     "validate_mesh",
     "volume_to_sdf",
     "write_grids",

@@ -193,6 +193,16 @@ def expand(
 ) -> Any:
     """Widen (or narrow) a level set's band (`levelforge expand`). Grid, or (Grid, stats)."""
 
+def reshape(
+    grid: Grid,
+    *,
+    op: Literal["dilate", "erode", "open", "close"] = "dilate",
+    offset: float = 1.0,
+    world_units: bool = False,
+    progress: _Progress = None,
+) -> Grid:
+    """Dilate, erode, open or close a level set by an offset (`levelforge reshape`)."""
+
 def volume_to_sdf(
     volume: Union[npt.ArrayLike, Grid],
     spacing: _Triple = (1.0, 1.0, 1.0),

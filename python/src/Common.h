@@ -220,6 +220,8 @@ std::string gridRepr(const PyGrid& g);
 void bindGrid(py::module_& m);
 /// Binds the conversions, I/O and Adf (Convert.cc).
 void bindConvert(py::module_& m);
+/// levelforge.reshape (python/src/Reshape.cc).
+void bindReshape(py::module_& m);
 
 /// @brief The boost.python bridge to pyopenvdb (OpenVdbBridge.cc, when built): the Python object
 ///        of @p grid as a pyopenvdb.FloatGrid sharing its tree; null with a Python error set when

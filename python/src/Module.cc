@@ -16,6 +16,7 @@ PYBIND11_MODULE(_levelforge, m)
     lf::registerExceptions(m);
     lf::bindGrid(m);
     lf::bindConvert(m);
+    lf::bindReshape(m);
     m.attr("__version__") = LEVELFORGE_PYTHON_VERSION;
     m.attr("generator") = levelforge::generatorString();
     m.attr("openvdb_version") = pybind11::make_tuple(openvdb::OPENVDB_LIBRARY_MAJOR_VERSION, openvdb::OPENVDB_LIBRARY_MINOR_VERSION,

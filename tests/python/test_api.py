@@ -148,6 +148,7 @@ OPERATORS = {
     # grids need a multi-grid return and an Int32 grid type in Python)
     "mesh-to-sdf": ("mesh_to_sdf", {"quiet", "report", "fog-grid", "reference", "primitive-index-grid"}, {}),
     "expand": ("expand", {"quiet", "grid-name"}, {}),  # grid-name picks the grid in a file
+    "reshape": ("reshape", {"quiet", "grid-name"}, {}),  # grid-name picks the grid in a file
     "volume-to-sdf": ("volume_to_sdf", {"quiet", "vdb-grid", "raw-dims", "raw-type", "raw-spacing",
                                         "raw-header-bytes", "raw-big-endian"}, {}),  # read_volume's
     "mesh-to-adf": ("mesh_to_adf", {"quiet", "report"}, {"no-bounds": ("bounds", lambda v: not v)}),
