@@ -648,14 +648,18 @@ struct FastWindingNumber::Impl
     Vec3d gradient(const Vec3d& q) const
     {
         Vec3d g(0.0);
-        for (const fwn_internal::CurrentEdge& e : edges) {
-            const Vec3d a = e.a - q, b = e.b - q;
-            const double la = a.length(), lb = b.length();
-            const double den = la * lb * (la * lb + a.dot(b));
-            if (!(den > 0.0)) continue; // q on the edge's line beyond it: no contribution
-            g += a.cross(b) * (e.signedCurrent * (la + lb) / den);
-        }
+        for (const fwn_internal::CurrentEdge& e : edges) g += edgeField(e, q);
         return g / (4.0 * kPi);
+    }
+
+    /// One edge's term of gradient() times 4π (zero for q on the edge's line beyond it).
+    static Vec3d edgeField(const fwn_internal::CurrentEdge& e, const Vec3d& q)
+    {
+        const Vec3d a = e.a - q, b = e.b - q;
+        const double la = a.length(), lb = b.length();
+        const double den = la * lb * (la * lb + a.dot(b));
+        if (!(den > 0.0)) return Vec3d(0.0);
+        return a.cross(b) * (e.signedCurrent * (la + lb) / den);
     }
 
     /// ∇w(q) with the edge tree: a subtree whose box is farther than twice its diagonal from q
@@ -675,14 +679,7 @@ struct FastWindingNumber::Impl
             const fwn_internal::EdgeNode& n = edgeNodes[stack[--sp]];
             const double d2 = fwn_internal::boxBoxDist2(n.lo, n.hi, q, q);
             if (n.count > 0) {
-                for (uint32_t i = n.first; i < n.first + n.count; ++i) {
-                    const fwn_internal::CurrentEdge& e = edges[i];
-                    const Vec3d a = e.a - q, b = e.b - q;
-                    const double la = a.length(), lb = b.length();
-                    const double den = la * lb * (la * lb + a.dot(b));
-                    if (!(den > 0.0)) continue;
-                    g += a.cross(b) * (e.signedCurrent * (la + lb) / den);
-                }
+                for (uint32_t i = n.first; i < n.first + n.count; ++i) g += edgeField(edges[i], q);
                 continue;
             }
             if (d2 > 4.0 * n.diag2 && d2 > 0.0) {

@@ -3,6 +3,10 @@
 // captured, for the end-to-end CLI tests.
 #pragma once
 
+#include <levelforge/io/VdbIO.h>
+
+#include <openvdb/openvdb.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -27,6 +31,14 @@ inline std::string shellQuote(const std::string& s)
     std::string q = "'";
     for (char c : s) q += (c == '\'') ? std::string("'\\''") : std::string(1, c);
     return q + "'";
+}
+
+/// The float grid of a file that holds exactly one grid; null otherwise.
+inline openvdb::FloatGrid::Ptr readSingleFloatGrid(const std::string& path)
+{
+    const auto grids = levelforge::readGrids(path);
+    if (grids->size() != 1) return nullptr;
+    return openvdb::gridPtrCast<openvdb::FloatGrid>((*grids)[0]);
 }
 
 /// What one run of the program gave.

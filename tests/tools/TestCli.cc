@@ -60,12 +60,7 @@ std::string writeText(const fs::path& path, const std::string& text)
     return path.string();
 }
 
-openvdb::FloatGrid::Ptr readSingleLevelSet(const std::string& path)
-{
-    const auto grids = levelforge::readGrids(path);
-    if (grids->size() != 1) return nullptr;
-    return openvdb::gridPtrCast<openvdb::FloatGrid>((*grids)[0]);
-}
+openvdb::FloatGrid::Ptr readSingleLevelSet(const std::string& path) { return levelforge_test::readSingleFloatGrid(path); }
 
 } // namespace
 

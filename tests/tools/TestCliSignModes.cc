@@ -44,12 +44,7 @@ std::string writeOpenSphere(const fs::path& dir)
     return path;
 }
 
-openvdb::FloatGrid::Ptr readGrid(const std::string& path)
-{
-    const auto grids = levelforge::readGrids(path);
-    if (grids->size() != 1) return nullptr;
-    return openvdb::gridPtrCast<openvdb::FloatGrid>((*grids)[0]);
-}
+openvdb::FloatGrid::Ptr readGrid(const std::string& path) { return levelforge_test::readSingleFloatGrid(path); }
 
 } // namespace
 
