@@ -1,8 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 /// @file
-/// @brief From what OpenMesh read to a TriangleMesh: ear clipping of polygons in their best-fit
-///        plane, and the assembly (exact positions, range checks, dropped faces).
+/// @brief From what OpenMesh read to a TriangleMesh: quads split along 0-2 (1-3 where 0-2 leaves
+///        a non-convex quad), ear clipping of larger polygons in their best-fit plane, and the
+///        assembly (exact positions, range checks, dropped faces).
 #include "io/MeshImporter.h"
+
+#include <unordered_set>
 
 namespace levelforge {
 
@@ -10,15 +13,17 @@ namespace meshio_internal {
 
 // ----------------------------------------------------------------------------- ear clipping
 
-/// Triangulates simple polygons by ear clipping in their best-fit plane. Buffers are reused
-/// from polygon to polygon.
+/// Triangulates simple polygons in their best-fit plane: a quad along its 0-2 diagonal (as
+/// OpenVDB's meshToVolume and most tools do), or along 1-3 where 0-2 would leave a non-convex
+/// quad; larger polygons (and bow-tie quads) by ear clipping. Buffers are reused from polygon to
+/// polygon.
 class EarClipper
 {
 public:
     /// Appends triangles for @a corners (k >= 4 distinct consecutive corners) to @a out.
     /// Returns false if it had to fall back to a fan.
     bool triangulate(const std::vector<Vec3d>& P, const uint32_t* corners, size_t k,
-                     std::vector<Vec3I>& out)
+                     std::vector<Vec3I>& out, std::unordered_set<uint64_t>* edges = nullptr)
     {
         // Newell normal, relative to the first corner for accuracy.
         const Vec3d o = P[corners[0]];
@@ -39,6 +44,28 @@ public:
         for (size_t i = 0; i < k; ++i) {
             const Vec3d d = P[corners[i]] - o;
             mQ[i] = {d.dot(u), d.dot(v)};
+        }
+        if (k == 4) {
+            // quads as OpenVDB and most tools split them: 0-1-2, 0-2-3, unless that diagonal
+            // leaves the quad (a non-convex quad seen in its best-fit plane, where it would fold
+            // the surface); then 1-2-3, 1-3-0; a bow tie (neither) goes to the ear clipper
+            // (or where 0-2 is already an edge of another face, or the diagonal of an earlier
+            // quad, and 1-3 is not: that split would make the edge non-manifold)
+            const auto inside = [&](int a) {
+                const int b = (a + 1) % 4, c = (a + 2) % 4, d = (a + 3) % 4;
+                return orient(mQ[a], mQ[b], mQ[c]) > 0.0 && orient(mQ[a], mQ[c], mQ[d]) > 0.0;
+            };
+            const auto taken = [&](int a) { return edges && edges->count(edgeKey(corners[a], corners[a + 2])) > 0; };
+            const auto split = [&](int a) {
+                const int b = (a + 1) % 4, c = (a + 2) % 4, d = (a + 3) % 4;
+                if (edges) edges->insert(edgeKey(corners[a], corners[c])); // taken for later quads
+                out.emplace_back(corners[a], corners[b], corners[c]);
+                out.emplace_back(corners[a], corners[c], corners[d]);
+                return true;
+            };
+            const bool in0 = inside(0), in1 = inside(1);
+            if (in0 && (!in1 || !taken(0) || taken(1))) return split(0);
+            if (in1) return split(1);
         }
         mRing.resize(k);
         for (size_t i = 0; i < k; ++i) mRing[i] = uint32_t(i);
@@ -64,6 +91,12 @@ public:
         }
         out.emplace_back(corners[mRing[0]], corners[mRing[1]], corners[mRing[2]]);
         return true;
+    }
+
+    /// The key of the undirected edge (a, b).
+    static uint64_t edgeKey(uint32_t a, uint32_t b)
+    {
+        return a < b ? (uint64_t(a) << 32) | b : (uint64_t(b) << 32) | a;
     }
 
 private:
@@ -159,6 +192,21 @@ void assemble(const std::string& path, Importer& imp, Prescan& pre, TriangleMesh
     mesh.triangles.reserve(expected);
     mesh.faceIndex.clear();
     mesh.faceIndex.reserve(expected);
+    // the faces' edges, where there are quads (their split avoids an existing edge)
+    std::unordered_set<uint64_t> edges;
+    bool quads = false;
+    for (size_t q = 0, f = 0; f < imp.mFaceCount && !quads; ++f) { quads = s[q] == 4; q += 1 + size_t(s[q]); }
+    if (quads) {
+        edges.reserve(expected * 2);
+        for (size_t q = 0, f = 0; f < imp.mFaceCount; ++f) {
+            const size_t k = size_t(s[q]);
+            for (size_t j = 0; j < k; ++j) {
+                const int32_t a = s[q + 1 + j], b = s[q + 1 + (j + 1) % k];
+                if (a >= 0 && b >= 0 && a != b) edges.insert(EarClipper::edgeKey(uint32_t(a), uint32_t(b)));
+            }
+            q += 1 + k;
+        }
+    }
     uint64_t dropped = 0;
     pos = 0;
     for (uint64_t f = 0; f < imp.mFaceCount; ++f) {
@@ -209,7 +257,7 @@ void assemble(const std::string& path, Importer& imp, Prescan& pre, TriangleMesh
         }
         ++info.polygons;
         const size_t first = mesh.triangles.size();
-        if (!clipper.triangulate(mesh.points, poly.data(), poly.size(), mesh.triangles)) {
+        if (!clipper.triangulate(mesh.points, poly.data(), poly.size(), mesh.triangles, quads ? &edges : nullptr)) {
             ++info.fanFallbacks;
             // A fan over a polygon that repeats a corner may produce collapsed triangles.
             auto collapsed = [](const Vec3I& t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; };

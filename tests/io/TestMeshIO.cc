@@ -309,6 +309,40 @@ TEST(MeshIO, ConcavePolygonsAreEarClippedInTheirPlane)
     }
 }
 
+TEST(MeshIO, QuadsAreSplitAlongTheirFirstDiagonalUnlessItLeavesThem)
+{
+    // a non-planar (saddle) quad: both diagonals are inside its projection, and the split along
+    // 0-2 is OpenVDB's (0-1-2, 0-2-3); the other one would be a different surface (its centre
+    // 0.5 higher or lower). A convex planar quad in every rotation of its corners keeps 0-2.
+    // (The non-convex dart, which must be split along 1-3, is in ConcavePolygonsAreEarClipped.)
+    const fs::path dir = scratchDir("meshio_quads");
+    const std::string obj = writeFile(dir, "quads.obj",
+        "v 0 0 0\nv 1 0 1\nv 1 1 0\nv 0 1 1\n"   // saddle
+        "v 3 0 0\nv 5 0 0\nv 5.5 1 0\nv 3 2 0\n" // convex, planar
+        "f 1 2 3 4\nf 5 6 7 8\nf 6 7 8 5\n");
+    const TriangleMesh m = readMesh(obj);
+    ASSERT_EQ(m.triangles.size(), 6u);
+    EXPECT_EQ(m.triangles[0], Vec3I(0, 1, 2));
+    EXPECT_EQ(m.triangles[1], Vec3I(0, 2, 3));
+    EXPECT_EQ(m.triangles[2], Vec3I(4, 5, 6));
+    EXPECT_EQ(m.triangles[3], Vec3I(4, 6, 7));
+    EXPECT_EQ(m.triangles[4], Vec3I(5, 6, 7));
+    EXPECT_EQ(m.triangles[5], Vec3I(5, 7, 4));
+
+    // two quads sharing corners 0 and 2 (a pentagon in between): the second must not split
+    // along 0-2 too (four triangles on one edge); it takes 1-3 (here 4-5)
+    const std::string two = writeFile(dir, "two.obj",
+        "v 0 0 0\nv 1 0 0.2\nv 1 1 0\nv 0 1 0.2\nv 1 0 -0.3\nv 0 1 -0.3\n"
+        "f 1 2 3 4\nf 1 4 3 6 5\nf 1 4 3 5\n");
+    const TriangleMesh t = readMesh(two);
+    ASSERT_GE(t.triangles.size(), 4u);
+    EXPECT_EQ(t.triangles[0], Vec3I(0, 1, 2));
+    EXPECT_EQ(t.triangles[1], Vec3I(0, 2, 3));
+    const size_t n = t.triangles.size();
+    EXPECT_EQ(t.triangles[n - 2], Vec3I(3, 2, 4)); // 1-3 of (0, 3, 2, 4): corners 3 and 0 -> 3-2-4, 3-4-0
+    EXPECT_EQ(t.triangles[n - 1], Vec3I(3, 4, 0));
+}
+
 TEST(MeshIO, RandomStarPolygonsTriangulateExactly)
 {
     // Star-shaped (generally concave) polygons with 5..34 corners in random tilted planes: ear

@@ -12,10 +12,15 @@
 ///  - every triangle indexes an existing vertex and every vertex coordinate is finite; otherwise
 ///    it throws InvalidMeshError naming the file, the element (0-based face / vertex number, and
 ///    the line for text files) and the offending value;
-///  - polygons with more than three corners are triangulated by ear clipping in the polygon's
-///    best-fit (Newell) plane, so concave polygons come out right and every triangle keeps the
-///    polygon's winding; a polygon that ear clipping cannot handle (self-intersecting,
-///    collinear) falls back to a fan;
+///  - quads are split along their 0-2 diagonal (0-1-2, 0-2-3), as OpenVDB's meshToVolume and
+///    most tools split them, unless that diagonal leaves the quad seen in its best-fit (Newell)
+///    plane (a non-convex quad: the split would fold the surface) or is already an edge of
+///    another face while 1-3 is not (the split would make that edge non-manifold); then along
+///    1-3 (1-2-3, 1-3-0). A non-planar quad split the other way would move the surface by up to the quad's
+///    out-of-plane height, so the rule matters for matching other tools. Larger polygons (and
+///    bow-tie quads) are triangulated by ear clipping in the best-fit plane, so concave polygons
+///    come out right and every triangle keeps the polygon's winding; a polygon that ear
+///    clipping cannot handle (self-intersecting, collinear) falls back to a fan;
 ///  - faces with fewer than three distinct corners carry no area and are dropped (OpenMesh's OBJ
 ///    and STL readers drop them before we see them); MeshReadInfo::droppedFaces counts them.
 ///    (OpenMesh's OBJ reader also removes every repeated corner of a polygon, keeping the first
