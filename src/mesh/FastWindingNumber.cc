@@ -610,10 +610,14 @@ struct FastWindingNumber::Impl
         return sum / (4.0 * kPi);
     }
 
-    double gradientBound(const Vec3d& lo, const Vec3d& hi) const
+    /// Σ over the current edges of a per-edge term of the distance δ from [lo, hi] to the edge
+    /// (edgeTerm(edge, δ²)), a subtree farther than twice its box diagonal taken at once
+    /// (nodeTerm(node, δ²) with δ to its box); +infinity when an edge touches the box.
+    template<typename EdgeTerm, typename NodeTerm>
+    double sumOverEdges(const Vec3d& lo, const Vec3d& hi, EdgeTerm&& edgeTerm, NodeTerm&& nodeTerm) const
     {
         if (edgeNodes.empty()) return 0.0;
-        double B = 0.0;
+        double sum = 0.0;
         uint32_t stack[128];
         int sp = 0;
         stack[sp++] = 0;
@@ -627,19 +631,27 @@ struct FastWindingNumber::Impl
                     for (int k = 0; k < 3; ++k) { elo[k] = std::min(e.a[k], e.b[k]); ehi[k] = std::max(e.a[k], e.b[k]); }
                     const double de2 = fwn_internal::boxBoxDist2(elo, ehi, lo, hi);
                     if (!(de2 > 0.0)) return kInf;
-                    const double de = std::sqrt(de2);
-                    B += e.current * std::min(e.length / de2, kPi / de);
+                    sum += edgeTerm(e, de2);
                 }
                 continue;
             }
             if (d2 > 0.0 && d2 > 4.0 * n.diag2) {
-                B += std::min(n.sumIL / d2, kPi * n.sumI / std::sqrt(d2));
+                sum += nodeTerm(n, d2);
                 continue;
             }
             stack[sp++] = n.right;
             stack[sp++] = n.left;
         }
-        return B / (4.0 * kPi) * (1.0 + 1e-9);
+        return sum / (4.0 * kPi) * (1.0 + 1e-9);
+    }
+
+    /// Bound of |∇w| over [lo, hi]: (1/4π) Σ |I| min(L/δ², π/δ).
+    double gradientBound(const Vec3d& lo, const Vec3d& hi) const
+    {
+        return sumOverEdges(
+            lo, hi,
+            [](const fwn_internal::CurrentEdge& e, double de2) { return e.current * std::min(e.length / de2, kPi / std::sqrt(de2)); },
+            [](const fwn_internal::EdgeNode& n, double d2) { return std::min(n.sumIL / d2, kPi * n.sumI / std::sqrt(d2)); });
     }
 
     /// ∇w(q) = −Σ_e I_e/(4π) ∫_e dl × (x − q)/|x − q|³ (I_e along the half-edge direction of
@@ -701,35 +713,14 @@ struct FastWindingNumber::Impl
     /// Bound of the operator norm of ∇∇w over [lo, hi]: (1/4π) Σ |I| min(2 L/δ³, 4/δ²).
     double hessianBound(const Vec3d& lo, const Vec3d& hi) const
     {
-        if (edgeNodes.empty()) return 0.0;
-        double H = 0.0;
-        uint32_t stack[128];
-        int sp = 0;
-        stack[sp++] = 0;
-        while (sp) {
-            const fwn_internal::EdgeNode& n = edgeNodes[stack[--sp]];
-            const double d2 = fwn_internal::boxBoxDist2(n.lo, n.hi, lo, hi);
-            if (n.count > 0) {
-                for (uint32_t i = n.first; i < n.first + n.count; ++i) {
-                    const fwn_internal::CurrentEdge& e = edges[i];
-                    double elo[3], ehi[3];
-                    for (int k = 0; k < 3; ++k) { elo[k] = std::min(e.a[k], e.b[k]); ehi[k] = std::max(e.a[k], e.b[k]); }
-                    const double de2 = fwn_internal::boxBoxDist2(elo, ehi, lo, hi);
-                    if (!(de2 > 0.0)) return kInf;
-                    const double de = std::sqrt(de2);
-                    H += e.current * std::min(2.0 * e.length / (de2 * de), 4.0 / de2);
-                }
-                continue;
-            }
-            if (d2 > 0.0 && d2 > 4.0 * n.diag2) {
-                const double d = std::sqrt(d2);
-                H += std::min(2.0 * n.sumIL / (d2 * d), 4.0 * n.sumI / d2);
-                continue;
-            }
-            stack[sp++] = n.right;
-            stack[sp++] = n.left;
-        }
-        return H / (4.0 * kPi) * (1.0 + 1e-9);
+        return sumOverEdges(
+            lo, hi,
+            [](const fwn_internal::CurrentEdge& e, double de2) {
+                return e.current * std::min(2.0 * e.length / (de2 * std::sqrt(de2)), 4.0 / de2);
+            },
+            [](const fwn_internal::EdgeNode& n, double d2) {
+                return std::min(2.0 * n.sumIL / (d2 * std::sqrt(d2)), 4.0 * n.sumI / d2);
+            });
     }
 };
 
