@@ -629,7 +629,12 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
         const auto tw = Clock::now();
         FastWindingNumberOptions fo;
         fo.accuracy = options.windingAccuracy;
-        fwn.reset(new FastWindingNumber(mesh, fo));
+        int64_t leftOut = -1;
+        fwn = winding_internal::signingWindingNumber(mesh, fo, leftOut);
+        if (leftOut >= 0) {
+            stats.signReason += "; the mesh's only open part, triangle " + std::to_string(mesh.sourceFace(size_t(leftOut))) +
+                                ", is left out of the winding number (alone it stays below 1/2)";
+        }
         stats.currentEdges = fwn->currentEdges();
         stats.secondsWinding = secondsSince(tw);
     }
@@ -736,7 +741,8 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
         // the tiles' signs (the leaves are signed); leaves kept only for their inactive signs
         // collapse back into tiles
         WindingSignStats ws;
-        winding_internal::signTree(*tree, *xform, *fwn, bounds, false, std::numeric_limits<double>::infinity(), ws);
+        winding_internal::signTree(*tree, *xform, *fwn, bounds, false, std::numeric_limits<double>::infinity(), ws,
+                                   interrupter);
         openvdb::tools::prune(*tree);
         stats.windingEvaluations += ws.evaluations;
         stats.windingGroups += ws.components;

@@ -13,6 +13,7 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -72,6 +73,12 @@ struct Scratch
     std::vector<uint32_t> group, group2, groupStart, groupRep, groupVoxels, tris, undecided;
     std::vector<Vec3d> points;
     std::vector<double> values;
+    // the local exact tier: the triangles near the leaf, the boundary of their union (a, b,
+    // signed current), the half-edges it is made from
+    std::vector<uint32_t> nearTris;
+    struct NearEdge { Vec3d a, b; double current; };
+    std::vector<NearEdge> nearEdges;
+    std::vector<std::pair<std::array<double, 6>, int>> halfEdges;
     uint64_t windingEvaluations = 0, windingGroups = 0, windingIndividual = 0;
 };
 

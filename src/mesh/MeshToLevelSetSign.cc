@@ -19,6 +19,130 @@ namespace levelforge {
 namespace meshtols_internal {
 
 
+namespace {
+
+/// Triangles near a leaf up to which the local exact tier is used (each costs one solid angle
+/// per undecided voxel; a tree evaluation costs a few dozen).
+constexpr size_t kNearTrianglesMax = 64;
+/// How far (voxels) beyond the leaf's voxel centres the near triangles are gathered: the
+/// boundary of the rest is at least this far from the leaf.
+constexpr double kNearReach = 6.0;
+
+/// The local exact tier, for the undecided voxels of a leaf near a boundary current (a hole's
+/// rim, a stray open triangle): w = w_N + w_F, w_N the winding number of the triangles N whose
+/// box meets the leaf's box grown by kNearReach voxels (summed exactly, one solid angle per
+/// triangle and voxel), w_F that of the rest F. No triangle of F comes within kNearReach of the
+/// leaf, so w_F is smooth there; per 4×4×4 block a first-order model of it at the block's
+/// centre c: w_F(c) = w(c) − w_N(c) (one estimate), ∇w_F(c) = ∇w(c) − ∇w_N(c) (the edge tree's
+/// gradient with its error bound Be, less the exact Biot–Savart field of ∂N), and a bound H of
+/// ‖∇∇w_F‖ over the block from the current of ∂F = ∂M − ∂N: every element of it is an edge of a
+/// triangle of F, so an edge that meets the grown box (all of whose triangles are in N) carries
+/// none, and any other carries at most |I_M(e)| + |I_N(e)|. A voxel v then gets
+/// w_N(v) + w_F(c) + ∇w_F·(v − c) ± (½ H |v − c|² + Be |v − c|); what this leaves undecided
+/// stays in s.undecided for the tiers below. Exact in the sense of decide(): the only estimate
+/// is w(c)'s.
+bool localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const double* lower)
+{
+    using namespace winding_internal;
+    const double h = ctx.voxelSize;
+    const FastWindingNumber& fwn = *ctx.fwn;
+    const Vec3d o(origin.x(), origin.y(), origin.z());
+    // the grown box (index space), and the gather box a hair larger, so that an edge the slab
+    // test finds meeting the grown box has all its triangles gathered whatever the rounding
+    const Vec3d skipLo = (o - Vec3d(0.5 + kNearReach)) * h, skipHi = (o + Vec3d(7.5 + kNearReach)) * h;
+    const Vec3d pad(1e-6 * h);
+    FastWindingNumberAccess::gather(fwn, skipLo - pad, skipHi + pad, s.nearTris);
+    if (s.nearTris.size() > kNearTrianglesMax) return false;
+    // ∂N: the half-edges of N, opposite ones (by exact position) cancelled
+    s.halfEdges.clear();
+    for (uint32_t t : s.nearTris) {
+        const double* c = FastWindingNumberAccess::triangle(fwn, t);
+        for (int k = 0; k < 3; ++k) {
+            const double* p = c + 3 * k;
+            const double* q = c + 3 * ((k + 1) % 3);
+            const bool forward = std::lexicographical_compare(p, p + 3, q, q + 3);
+            const double* lo = forward ? p : q;
+            const double* hi = forward ? q : p;
+            s.halfEdges.push_back({{lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]}, forward ? 1 : -1});
+        }
+    }
+    std::sort(s.halfEdges.begin(), s.halfEdges.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    s.nearEdges.clear();
+    for (size_t i = 0; i < s.halfEdges.size();) {
+        size_t j = i;
+        int net = 0;
+        for (; j < s.halfEdges.size() && s.halfEdges[j].first == s.halfEdges[i].first; ++j) net += s.halfEdges[j].second;
+        if (net != 0) {
+            const auto& e = s.halfEdges[i].first;
+            s.nearEdges.push_back({Vec3d(e[0], e[1], e[2]), Vec3d(e[3], e[4], e[5]), double(net)});
+        }
+        i = j;
+    }
+    const auto wNear = [&](const Vec3d& p) {
+        double sum = 0.0;
+        for (uint32_t t : s.nearTris) {
+            const double* c = FastWindingNumberAccess::triangle(fwn, t);
+            sum += triangleSolidAngle(Vec3d(c), Vec3d(c + 3), Vec3d(c + 6), p);
+        }
+        return sum / (4.0 * 3.14159265358979323846);
+    };
+    const auto indexOf = [&](uint32_t i) {
+        return Vec3d(double(origin.x() + int(i >> 6)), double(origin.y() + int((i >> 3) & 7)), double(origin.z() + int(i & 7)));
+    };
+    // the undecided voxels by block: the whole leaf first, then 4×4×4 blocks
+    for (int shift = 3; shift >= 2 && !s.undecided.empty(); --shift) {
+        const uint32_t m = (0xffu << shift) & 7u;
+        const auto block = [m](uint32_t i) { return (((i >> 6) & m) << 6) | (((i >> 3) & m) << 3) | (i & m); };
+        if (shift < 3)
+            std::sort(s.undecided.begin(), s.undecided.end(), [&](uint32_t a, uint32_t b) {
+                const uint32_t ba = block(a), bb = block(b);
+                return ba < bb || (ba == bb && a < b);
+            });
+        const double side = double(1 << shift);
+        s.group2.clear(); // still undecided
+        for (size_t first = 0; first < s.undecided.size();) {
+            const uint32_t base = block(s.undecided[first]);
+            size_t last = first;
+            while (last < s.undecided.size() && block(s.undecided[last]) == base) ++last;
+            const Vec3d c = indexOf(base) + Vec3d(0.5 * (side - 1.0));
+            const Vec3d cw = c * h;
+            const Vec3d lo = (indexOf(base) - Vec3d(0.5)) * h, hi = (indexOf(base) + Vec3d(side - 0.5)) * h;
+            double H = FastWindingNumberAccess::hessianBoundBeyond(fwn, lo, hi, skipLo, skipHi);
+            double be = 0.0;
+            Vec3d B = fwn.gradient(cw, be);
+            for (const Scratch::NearEdge& e : s.nearEdges) {
+                B -= FastWindingNumberAccess::edgeGradient(e.a, e.b, e.current, cw);
+                if (!FastWindingNumberAccess::segmentMeetsBox(e.a, e.b, skipLo, skipHi))
+                    H += FastWindingNumberAccess::edgeHessianBound(e.a, e.b, e.current, lo, hi);
+            }
+            H *= h * h;
+            B *= h;
+            be *= h;
+            ++s.windingEvaluations;
+            const double wF = fwn(cw) - wNear(cw);
+            const bool model = std::isfinite(H) && std::isfinite(wF);
+            for (size_t k = first; k < last; ++k) {
+                const uint32_t i = s.undecided[k];
+                int v = -1;
+                if (!(lower[i] > kOnSurface)) v = 0; // on the surface: 0 either way
+                else if (model) {
+                    const Vec3d d = indexOf(i) - c;
+                    const double r = d.length();
+                    v = decide(wNear(indexOf(i) * h) + wF + B.dot(d), 0.5 * H * r * r + be * r);
+                }
+                if (v >= 0) s.inside[i] = uint8_t(v);
+                else s.group2.push_back(i);
+            }
+            first = last;
+        }
+        s.undecided.swap(s.group2);
+    }
+    return true;
+}
+
+} // namespace
+
 /// The winding signs of a leaf's 512 voxels (see MeshToLevelSet.h, SignMode::Winding).
 ///
 /// Groups: face-adjacent voxels u, v with d(u) + d(v) > 1 see no surface between them (the open
@@ -46,32 +170,18 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
     const auto indexOf = [&](uint32_t i) {
         return Vec3d(double(origin.x() + int(i >> 6)), double(origin.y() + int((i >> 3) & 7)), double(origin.z() + int(i & 7)));
     };
-    // groups, each with its representative (farthest voxel, ties to the lowest offset)
-    s.groupStart.clear();
-    s.groupRep.clear();
-    s.groupVoxels.clear();
-    for (uint32_t start = 0; start < 512; ++start) {
-        if (s.hops[start] >= 0) continue;
-        bfs(3, start, s.member, adjacent, s.hops, s.group);
-        uint32_t rep = s.group[0];
-        for (uint32_t i : s.group)
-            if (lower[i] > lower[rep] || (lower[i] == lower[rep] && i < rep)) rep = i;
-        s.groupStart.push_back(uint32_t(s.groupVoxels.size()));
-        s.groupRep.push_back(rep);
-        s.groupVoxels.insert(s.groupVoxels.end(), s.group.begin(), s.group.end());
-    }
-    const size_t groups = s.groupRep.size();
-    s.groupStart.push_back(uint32_t(s.groupVoxels.size()));
-    s.windingGroups += groups;
-    size_t main = 0;
-    for (size_t k = 1; k < groups; ++k)
-        if (lower[s.groupRep[k]] > lower[s.groupRep[main]]) main = k;
-    const uint32_t P = s.groupRep[main];
-    const double w0 = (*ctx.fwn)(indexOf(P) * h);
-    ++s.windingEvaluations;
     // gradient bound per voxel of path over the leaf's cells grown by the largest move of a
     // segment end (0.25 voxel)
     const double g = ctx.fwn->gradientBound((indexOf(0) - Vec3d(0.5)) * h, (indexOf(511) + Vec3d(0.5)) * h) * h;
+    // a boundary current through the leaf (a hole's rim, an open triangle): the groups cannot
+    // carry a value, so the local exact tier takes every voxel at once
+    bool local = false;
+    if (!std::isfinite(g)) {
+        s.undecided.resize(512);
+        for (uint32_t i = 0; i < 512; ++i) s.undecided[i] = i;
+        local = localExactTier(ctx, origin, s, lower);
+        if (local && s.undecided.empty()) return;
+    }
     // fixed directions off the lattice for the segment ends
     static const Vec3d kDir[3] = {Vec3d(0.5257311121, 0.3090169944, 0.7925052400).unit(),
                                   Vec3d(-0.2763932023, 0.8506508084, 0.4472135955).unit(),
@@ -100,49 +210,81 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
         }
         return false;
     };
-    s.undecided.clear();
-    for (size_t k = 0; k < groups; ++k) {
-        const uint32_t Q = s.groupRep[k];
-        double wq = w0, err0 = 0.0;
-        bool own = k == main; // the value is Q's own estimate
-        if (!(lower[Q] > kOnSurface)) {
-            // voxels on the surface (to rounding; a group of them alone): their value is 0
-            // whatever the side; +0, and no estimate
-            for (uint32_t i = s.groupStart[k]; i < s.groupStart[k + 1]; ++i) s.inside[s.groupVoxels[i]] = 0;
-            continue;
+    if (!local) {
+        // groups, each with its representative (farthest voxel, ties to the lowest offset)
+        s.groupStart.clear();
+        s.groupRep.clear();
+        s.groupVoxels.clear();
+        for (uint32_t start = 0; start < 512; ++start) {
+            if (s.hops[start] >= 0) continue;
+            bfs(3, start, s.member, adjacent, s.hops, s.group);
+            uint32_t rep = s.group[0];
+            for (uint32_t i : s.group)
+                if (lower[i] > lower[rep] || (lower[i] == lower[rep] && i < rep)) rep = i;
+            s.groupStart.push_back(uint32_t(s.groupVoxels.size()));
+            s.groupRep.push_back(rep);
+            s.groupVoxels.insert(s.groupVoxels.end(), s.group.begin(), s.group.end());
         }
-        if (k != main) {
-            int change = 0;
-            double length = 0.0;
-            if (crossing(P, Q, change, length)) {
-                wq = w0 + change;
-                err0 = g > 0.0 ? g * length : 0.0;
-            } else {
-                wq = evalVoxel(Q);
-                own = true;
+        const size_t groups = s.groupRep.size();
+        s.groupStart.push_back(uint32_t(s.groupVoxels.size()));
+        s.windingGroups += groups;
+        size_t main = 0;
+        for (size_t k = 1; k < groups; ++k)
+            if (lower[s.groupRep[k]] > lower[s.groupRep[main]]) main = k;
+        const uint32_t P = s.groupRep[main];
+        const double w0 = (*ctx.fwn)(indexOf(P) * h);
+        ++s.windingEvaluations;
+        s.undecided.clear();
+        for (size_t k = 0; k < groups; ++k) {
+            const uint32_t Q = s.groupRep[k];
+            double wq = w0, err0 = 0.0;
+            bool own = k == main; // the value is Q's own estimate
+            if (!(lower[Q] > kOnSurface)) {
+                // voxels on the surface (to rounding; a group of them alone): their value is 0
+                // whatever the side; +0, and no estimate
+                for (uint32_t i = s.groupStart[k]; i < s.groupStart[k + 1]; ++i) s.inside[s.groupVoxels[i]] = 0;
+                continue;
+            }
+            if (k != main) {
+                int change = 0;
+                double length = 0.0;
+                if (crossing(P, Q, change, length)) {
+                    wq = w0 + change;
+                    err0 = g > 0.0 ? g * length : 0.0;
+                } else {
+                    wq = evalVoxel(Q);
+                    own = true;
+                }
+            }
+            // tier 1: the leaf's gradient bound times the path (P to Q, then Q's hops)
+            const uint32_t* first = s.groupVoxels.data() + s.groupStart[k];
+            const uint32_t* last = s.groupVoxels.data() + s.groupStart[k + 1];
+            // (no hop counts needed when the group's size, which bounds every path, already decides)
+            const int whole = g > 0.0 ? decide(wq, err0 + g * double(last - first)) : decide(wq, err0);
+            const bool hops = g > 0.0 && last - first > 1 && whole < 0;
+            if (hops) {
+                for (const uint32_t* it = first; it != last; ++it) { s.inGroup[*it] = 1; s.hopsRep[*it] = -1; }
+                bfs(3, Q, s.inGroup, adjacent, s.hopsRep, s.group2);
+                for (const uint32_t* it = first; it != last; ++it) s.inGroup[*it] = 0;
+            }
+            for (const uint32_t* it = first; it != last; ++it) {
+                const uint32_t i = *it;
+                int v;
+                if (i == Q && own) v = insideByEstimate(wq) ? 1 : 0;
+                else if (!hops) v = whole >= 0 ? whole : decide(wq, err0);
+                else v = decide(wq, err0 + g * double(i == Q ? 0 : s.hopsRep[i]));
+                if (v < 0) s.undecided.push_back(i);
+                else s.inside[i] = uint8_t(v);
             }
         }
-        // tier 1: the leaf's gradient bound times the path (P to Q, then Q's hops)
-        const uint32_t* first = s.groupVoxels.data() + s.groupStart[k];
-        const uint32_t* last = s.groupVoxels.data() + s.groupStart[k + 1];
-        // (no hop counts needed when the group's size, which bounds every path, already decides)
-        const int whole = g > 0.0 ? decide(wq, err0 + g * double(last - first)) : decide(wq, err0);
-        const bool hops = g > 0.0 && last - first > 1 && whole < 0;
-        if (hops) {
-            for (const uint32_t* it = first; it != last; ++it) { s.inGroup[*it] = 1; s.hopsRep[*it] = -1; }
-            bfs(3, Q, s.inGroup, adjacent, s.hopsRep, s.group2);
-            for (const uint32_t* it = first; it != last; ++it) s.inGroup[*it] = 0;
-        }
-        for (const uint32_t* it = first; it != last; ++it) {
-            const uint32_t i = *it;
-            int v;
-            if (i == Q && own) v = insideByEstimate(wq) ? 1 : 0;
-            else if (!hops) v = whole >= 0 ? whole : decide(wq, err0);
-            else v = decide(wq, err0 + g * double(i == Q ? 0 : s.hopsRep[i]));
-            if (v < 0) s.undecided.push_back(i);
-            else s.inside[i] = uint8_t(v);
-        }
     }
+    if (s.undecided.empty()) return;
+    const auto blockOf = [](uint32_t i, int shift) {
+        // the block of side 1 << shift holding voxel i, as the offset of its first voxel
+        const uint32_t m = (0xffu << shift) & 7u;
+        return (((i >> 6) & m) << 6) | (((i >> 3) & m) << 3) | (i & m);
+    };
+    if (g > 0.0 && !local) localExactTier(ctx, origin, s, lower);
     if (s.undecided.empty()) return;
     // tier 2 (near a boundary edge, or where |w| is near 1/2): per 4×4×4 block, then per 2×2×2
     // block for what the first leaves undecided, a first-order model at the block's voxel
@@ -150,11 +292,6 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
     // Be, Hessian bound H of the block grown by the segment ends' moves); a voxel v gets
     // w(S) + crossings(S' → v') + B·(v − S) ± (kWindingTolerance + ½ H L² + Be |v − S|), L the
     // path length; a voxel still undecided, its own estimate.
-    const auto blockOf = [](uint32_t i, int shift) {
-        // the block of side 1 << shift holding voxel i, as the offset of its first voxel
-        const uint32_t m = (0xffu << shift) & 7u;
-        return (((i >> 6) & m) << 6) | (((i >> 3) & m) << 3) | (i & m);
-    };
     for (int shift = 2; shift >= 1 && !s.undecided.empty(); --shift) {
         const uint32_t side = 1u << shift;
         std::sort(s.undecided.begin(), s.undecided.end(),

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <vector>
 
 namespace levelforge {
@@ -22,6 +23,22 @@ struct FastWindingNumberAccess
     static void gather(const FastWindingNumber& f, const Vec3d& lo, const Vec3d& hi, std::vector<uint32_t>& out);
     /// The 9 coordinates (a, b, c) of triangle i (leaf order).
     static const double* triangle(const FastWindingNumber& f, uint32_t i);
+    /// hessianBound() over [lo, hi] (world units) from the boundary-current edges that do not
+    /// meet [skipLo, skipHi] only.
+    static double hessianBoundBeyond(const FastWindingNumber& f, const Vec3d& lo, const Vec3d& hi, const Vec3d& skipLo,
+                                     const Vec3d& skipHi);
+    /// ∇w at q of the straight current element a → b carrying signedCurrent (Biot–Savart, 1/4π
+    /// included; the convention of FastWindingNumber::gradient()).
+    static Vec3d edgeGradient(const Vec3d& a, const Vec3d& b, double signedCurrent, const Vec3d& q);
+    /// Bound of the operator norm of ∇∇w over [lo, hi] from the element a → b carrying
+    /// ±current (+infinity when it meets the box).
+    static double edgeHessianBound(const Vec3d& a, const Vec3d& b, double current, const Vec3d& lo, const Vec3d& hi);
+    /// Distance from the segment [a, b] to the box [lo, hi], a lower bound within 1e-12 relative.
+    static double segmentBoxDistance(const Vec3d& a, const Vec3d& b, const Vec3d& lo, const Vec3d& hi);
+    /// True when the segment [a, b] meets the box [lo, hi].
+    static bool segmentMeetsBox(const Vec3d& a, const Vec3d& b, const Vec3d& lo, const Vec3d& hi);
+    /// Boundary-current edge i (0 <= i < currentEdges()): its ends and its signed current.
+    static void currentEdge(const FastWindingNumber& f, size_t i, Vec3d& a, Vec3d& b, double& signedCurrent);
 };
 } // namespace levelforge
 
@@ -92,9 +109,21 @@ void bfs(int log2n, uint32_t start, const uint8_t* member, Adjacent&& adjacent, 
 /// and with @p leavesToo also the values of its leaves with |φ| >= exactBand (world units)
 /// and every inactive leaf voxel (see signInactiveByWindingNumber()). Without leavesToo the
 /// leaves are taken as fully signed (meshToLevelSet()'s winding band). New leaves are made
-/// where a tile's sign changes inside it.
+/// where a tile's sign changes inside it. The interrupter (if any) is polled by work done;
+/// throws InterruptedError (the tree half signed) when it asks to stop.
 void signTree(openvdb::FloatTree& tree, const openvdb::math::Transform& xform, const FastWindingNumber& fwn,
-              const BBoxd& meshBounds, bool leavesToo, double exactBand, WindingSignStats& stats);
+              const BBoxd& meshBounds, bool leavesToo, double exactBand, WindingSignStats& stats,
+              openvdb::util::NullInterrupter* interrupter = nullptr);
+
+/// The fast winding number the winding sign uses: that of @p mesh, except in one case, where it
+/// is exact to leave a triangle out. When the mesh's whole boundary current is the boundary of
+/// one of its triangles t (a lone open triangle beside closed parts: a stray vertex's, a broken
+/// export's), w = w_rest + w_t with w_rest an integer (the rest has no boundary) and |w_t| < 1/2
+/// (one triangle subtends less than 2π from any point off its plane, and 0 in it), so
+/// |w| > 1/2 exactly where |w_rest| >= 1: t is left out, and the rest is signed as a closed mesh
+/// is, without boundary current. @p leftOut: the triangle left out (its index), or -1.
+std::unique_ptr<FastWindingNumber> signingWindingNumber(const TriangleMesh& mesh, const FastWindingNumberOptions& options,
+                                                        int64_t& leftOut);
 
 /// Activates every inactive negative value of @p tree: tiles stay tiles, leaf voxels keep their
 /// values (fill interior). Returns the number of voxels activated (tiles counted by volume).

@@ -76,12 +76,45 @@ constexpr double kSqrt3 = 1.7320508075688772;
 
 /// What the tile pass needs: the transform (voxel centres at integer index coordinates), the
 /// fast winding number and its bounds in voxel units.
+/// Polls the interrupter by work done (once per kEvaluationsPerPoll winding evaluations of all
+/// threads together); once it says stop, the pass returns without finishing and signTree() throws.
+struct TilePoller
+{
+    static constexpr uint64_t kEvaluationsPerPoll = 4096;
+    openvdb::util::NullInterrupter* interrupter = nullptr;
+    mutable std::atomic<uint64_t> work{0}, polls{0};
+    mutable std::atomic<bool> stop{false};
+
+    void report(WindingSignStats& st, uint64_t& reported) const
+    {
+        if (!interrupter) return;
+        const uint64_t delta = st.evaluations - reported;
+        if (delta == 0) return;
+        reported = st.evaluations;
+        const uint64_t owed = (work.fetch_add(delta, std::memory_order_relaxed) + delta) / kEvaluationsPerPoll;
+        uint64_t p = polls.load(std::memory_order_relaxed);
+        while (p < owed)
+            if (polls.compare_exchange_weak(p, p + 1, std::memory_order_relaxed)) {
+                poll();
+                ++p;
+            }
+    }
+    bool stopped() const { return stop.load(std::memory_order_relaxed); }
+    /// One poll (also made between the passes, whatever the work done). 97 %: the finish of a
+    /// conversion whose distances took 20-95 %.
+    void poll() const
+    {
+        if (interrupter && interrupter->wasInterrupted(97)) stop.store(true, std::memory_order_relaxed);
+    }
+};
+
 struct Signer
 {
     const openvdb::math::Transform& xform;
     const FastWindingNumber& fwn;
     double h; // voxel size, world units
     bool hasCurrents;
+    const TilePoller& poller;
 
     Vec3d world(const Vec3d& index) const { return xform.indexToWorld(index); }
     /// Bound of |∇w| over the index-space box [lo, hi], per voxel.
@@ -210,6 +243,7 @@ struct TileSetter
     NodeT& node;
     float bg;
     WindingSignStats& st;
+    uint64_t& reported; // evaluations handed to the poller
 
     void cube(const Coord& o, int size, bool inside)
     {
@@ -256,6 +290,8 @@ template<typename NodeT>
 void modelCubes(const Signer& s, TileSetter<NodeT>& set, const std::vector<uint8_t>& slot, const Coord& o, int size)
 {
     constexpr int tile = int(NodeT::ChildNodeType::DIM);
+    s.poller.report(set.st, set.reported);
+    if (s.poller.stopped()) return;
     if (size >= tile) {
         bool undecided = false, child = false;
         for (int x = 0; x < size && !(undecided && child); x += tile)
@@ -302,6 +338,7 @@ void modelCubes(const Signer& s, TileSetter<NodeT>& set, const std::vector<uint8
 struct Scratch
 {
     WindingSignStats st;
+    uint64_t reported = 0; // st.evaluations handed to the poller
     std::vector<uint8_t> member, slot;
     std::vector<int32_t> hops;
     std::vector<uint32_t> order;
@@ -345,8 +382,9 @@ void signNodeTiles(const Signer& s, NodeT& node, float bg, Scratch& sc)
             sc.slot[i] = 2;
         }
     }
-    if (!undecided) return;
-    TileSetter<NodeT> set{node, bg, sc.st};
+    s.poller.report(sc.st, sc.reported);
+    if (!undecided || s.poller.stopped()) return;
+    TileSetter<NodeT> set{node, bg, sc.st, sc.reported};
     modelCubes(s, set, sc.slot, o, int(NodeT::DIM));
 }
 
@@ -388,6 +426,7 @@ void signLeaf(const Signer& s, LeafT& leaf, double exactBand, Scratch& sc)
             set(i, v);
         }
     }
+    s.poller.report(sc.st, sc.reported);
 }
 
 void add(WindingSignStats& a, const WindingSignStats& b)
@@ -403,10 +442,18 @@ void add(WindingSignStats& a, const WindingSignStats& b)
 } // namespace
 
 void signTree(FloatTree& tree, const openvdb::math::Transform& xform, const FastWindingNumber& fwn,
-              const BBoxd& meshBounds, bool leavesToo, double exactBand, WindingSignStats& stats)
+              const BBoxd& meshBounds, bool leavesToo, double exactBand, WindingSignStats& stats,
+              openvdb::util::NullInterrupter* interrupter)
 {
     const float bg = std::abs(tree.background());
-    const Signer s{xform, fwn, xform.voxelSize()[0], fwn.currentEdges() > 0};
+    TilePoller poller;
+    poller.interrupter = interrupter;
+    const Signer s{xform, fwn, xform.voxelSize()[0], fwn.currentEdges() > 0, poller};
+    const auto checkStop = [&] {
+        poller.poll();
+        if (poller.stopped()) throw InterruptedError("interrupted while signing by the winding number");
+    };
+    checkStop();
     tbb::enumerable_thread_specific<Scratch> tls;
 
     // leaves (their values with |φ| >= exactBand and their inactive voxels)
@@ -415,8 +462,9 @@ void signTree(FloatTree& tree, const openvdb::math::Transform& xform, const Fast
         tree.getNodes(leaves);
         tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), 16), [&](const tbb::blocked_range<size_t>& r) {
             Scratch& sc = tls.local();
-            for (size_t i = r.begin(); i != r.end(); ++i) signLeaf(s, *leaves[i], exactBand, sc);
+            for (size_t i = r.begin(); i != r.end() && !poller.stopped(); ++i) signLeaf(s, *leaves[i], exactBand, sc);
         });
+        checkStop();
     }
     // the tiles of the existing Node1s, then of the existing Node2s (whose split tiles get
     // Node1 children signed on the spot)
@@ -425,14 +473,16 @@ void signTree(FloatTree& tree, const openvdb::math::Transform& xform, const Fast
         tree.getNodes(n1);
         tbb::parallel_for(tbb::blocked_range<size_t>(0, n1.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
             Scratch& sc = tls.local();
-            for (size_t i = r.begin(); i != r.end(); ++i) signNodeTiles(s, *n1[i], bg, sc);
+            for (size_t i = r.begin(); i != r.end() && !poller.stopped(); ++i) signNodeTiles(s, *n1[i], bg, sc);
         });
+        checkStop();
         std::vector<Node2*> n2;
         tree.getNodes(n2);
         tbb::parallel_for(tbb::blocked_range<size_t>(0, n2.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
             Scratch& sc = tls.local();
-            for (size_t i = r.begin(); i != r.end(); ++i) signNodeTiles(s, *n2[i], bg, sc);
+            for (size_t i = r.begin(); i != r.end() && !poller.stopped(); ++i) signNodeTiles(s, *n2[i], bg, sc);
         });
+        checkStop();
     }
     // root: regions of the mesh's bounding box without a node (no surface there): a model at
     // the centre; undecided: a Node2 of undecided tiles, signed on the spot
@@ -460,12 +510,57 @@ void signTree(FloatTree& tree, const openvdb::math::Transform& xform, const Fast
                         tree.addTile(Node2::LEVEL, c, bg, false); // a Node2 of undecided tiles
                         Node2* node = tree.root().probeNode<Node2>(c);
                         if (node) signNodeTiles(s, *node, bg, sc);
+                        checkStop();
                     }
                 }
     }
     for (const Scratch& sc : tls) add(stats, sc.st);
 }
 
+
+std::unique_ptr<FastWindingNumber> signingWindingNumber(const TriangleMesh& mesh, const FastWindingNumberOptions& options,
+                                                        int64_t& leftOut)
+{
+    leftOut = -1;
+    auto fwn = std::make_unique<FastWindingNumber>(mesh, options);
+    if (fwn->currentEdges() != 3 || mesh.triangles.size() < 2) return fwn;
+    // the three current edges, each with |I| = 1, forming a triangle's boundary
+    using Key = std::array<double, 3>;
+    const auto key = [](const Vec3d& p) { return Key{p[0], p[1], p[2]}; };
+    std::array<std::pair<Key, Key>, 3> current; // directed by the sign of the current
+    for (size_t i = 0; i < 3; ++i) {
+        Vec3d a, b;
+        double I = 0.0;
+        FastWindingNumberAccess::currentEdge(*fwn, i, a, b, I);
+        if (std::abs(I) != 1.0) return fwn;
+        current[i] = I > 0.0 ? std::make_pair(key(a), key(b)) : std::make_pair(key(b), key(a));
+    }
+    std::sort(current.begin(), current.end());
+    // the vertices of the loop: a triangle of the mesh with exactly these corners, in this
+    // orientation, is the candidate (one with the opposite orientation would be a hole's mirror)
+    int64_t found = -1;
+    for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+        const Vec3I& tri = mesh.triangles[t];
+        std::array<std::pair<Key, Key>, 3> edges;
+        for (int k = 0; k < 3; ++k)
+            edges[k] = std::make_pair(key(mesh.points[tri[k]]), key(mesh.points[tri[(k + 1) % 3]]));
+        std::sort(edges.begin(), edges.end());
+        if (edges != current) continue;
+        if (found >= 0) return fwn; // two such triangles: not this case
+        found = int64_t(t);
+    }
+    if (found < 0) return fwn;
+    TriangleMesh rest;
+    rest.points = mesh.points;
+    rest.source = mesh.source;
+    rest.triangles.reserve(mesh.triangles.size() - 1);
+    for (size_t t = 0; t < mesh.triangles.size(); ++t)
+        if (int64_t(t) != found) rest.triangles.push_back(mesh.triangles[t]);
+    auto without = std::make_unique<FastWindingNumber>(rest, options);
+    if (without->currentEdges() != 0) return fwn;
+    leftOut = found;
+    return without;
+}
 
 namespace {
 template<typename NodeT>
@@ -512,12 +607,12 @@ uint64_t activateInterior(FloatTree& tree)
 } // namespace winding_internal
 
 void signInactiveByWindingNumber(openvdb::FloatGrid& grid, const FastWindingNumber& fwn, const BBoxd& meshBounds,
-                                 WindingSignStats* statsOut)
+                                 WindingSignStats* statsOut, openvdb::util::NullInterrupter* interrupter)
 {
     if (!grid.hasUniformVoxels()) throw InvalidArgumentError("signInactiveByWindingNumber: the grid's voxels are not cubes");
     WindingSignStats st;
     winding_internal::signTree(grid.tree(), grid.transform(), fwn, meshBounds, true,
-                               std::numeric_limits<double>::infinity(), st);
+                               std::numeric_limits<double>::infinity(), st, interrupter);
     if (statsOut) *statsOut = st;
 }
 

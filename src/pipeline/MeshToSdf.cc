@@ -319,10 +319,11 @@ MeshToSdfGrids run(const TriangleMesh& inputMesh, const MeshToSdfOptions& o, Mes
             // the exact band (and every tile) by the winding number again
             FastWindingNumberOptions fo;
             fo.accuracy = o.windingAccuracy;
-            const FastWindingNumber fwn(mesh, fo);
+            int64_t leftOut = -1;
+            const auto fwn = winding_internal::signingWindingNumber(mesh, fo, leftOut);
             WindingSignStats ws;
-            winding_internal::signTree(grid->tree(), grid->transform(), fwn, mesh.bounds(), true,
-                                       double(std::min(exteriorBand, interiorBand)) * h, ws);
+            winding_internal::signTree(grid->tree(), grid->transform(), *fwn, mesh.bounds(), true,
+                                       double(std::min(exteriorBand, interiorBand)) * h, ws, o.interrupter);
         }
     }
     if (o.fillInterior && (expand || scan)) stats.filledVoxels = winding_internal::activateInterior(grid->tree());

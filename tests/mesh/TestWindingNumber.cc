@@ -4,6 +4,7 @@
 // double-walled meshes (generated, and the shared open/broken meshes when present), the
 // unsigned distance against brute force, fill interior, thread-count determinism, bad input.
 #include "TestUtil.h"
+#include "mesh/WindingSignInternal.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/MeshValidation.h>
@@ -17,6 +18,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -722,4 +724,184 @@ TEST(WindingSign, PipelineWithExpansionSignsTheWidenedBandAndTiles)
     const auto udf = meshToSdf(m, o);
     EXPECT_EQ(udf->getGridClass(), openvdb::GRID_UNKNOWN);
     EXPECT_EQ(udf->metaValue<std::string>(kSignMetadata), "unsigned");
+}
+
+// ------------------------------------------------ stray open triangles (a bad export's vertex)
+
+namespace {
+
+/// A unit icosphere and a thin open triangle from beside it to `reach` units away, obliquely
+/// (direction (1, 0.3, 0.2)): the bounding box of its long edges holds the whole sphere. With
+/// `second`, another such triangle on the other side.
+TriangleMesh sphereWithStray(double reach, bool second = false)
+{
+    TriangleMesh m = makeIcosphere(Vec3d(0.0), 1.0, 3);
+    const auto add = [&m, reach](const Vec3d& a, const Vec3d& dir) {
+        const uint32_t base = uint32_t(m.points.size());
+        m.points.push_back(a);
+        m.points.push_back(a + Vec3d(0.0, 0.01, 0.004));
+        m.points.push_back(a + dir.unit() * reach);
+        m.triangles.emplace_back(base, base + 1, base + 2);
+    };
+    add(Vec3d(1.25, 0.0, 0.0), Vec3d(1.0, 0.3, 0.2));
+    if (second) add(Vec3d(-1.25, 0.1, 0.0), Vec3d(-1.0, 0.2, -0.3));
+    m.source = second ? "<sphere and two stray triangles>" : "<sphere and a stray triangle>";
+    return m;
+}
+
+} // namespace
+
+TEST(FastWindingNumber, SegmentBoxDistanceIsExact)
+{
+    // against the minimum over 20,001 points of the segment (above the truth by at most half a
+    // step times the slope, 1); segmentMeetsBox agrees with a zero distance
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> u(-2.0, 2.0);
+    const auto pointBox = [](const Vec3d& p, const Vec3d& lo, const Vec3d& hi) {
+        double d2 = 0.0;
+        for (int k = 0; k < 3; ++k) {
+            const double e = p[k] < lo[k] ? lo[k] - p[k] : (p[k] > hi[k] ? p[k] - hi[k] : 0.0);
+            d2 += e * e;
+        }
+        return std::sqrt(d2);
+    };
+    int touching = 0;
+    for (int i = 0; i < 400; ++i) {
+        const Vec3d a(u(rng), u(rng), u(rng)), b(u(rng), u(rng), u(rng));
+        Vec3d lo(u(rng), u(rng), u(rng)), hi = lo;
+        for (int k = 0; k < 3; ++k) hi[k] += std::abs(u(rng)) * 1.5;
+        double brute = std::numeric_limits<double>::infinity();
+        const int n = 20000;
+        for (int s = 0; s <= n; ++s) brute = std::min(brute, pointBox(a + (b - a) * (double(s) / n), lo, hi));
+        const double d = FastWindingNumberAccess::segmentBoxDistance(a, b, lo, hi);
+        EXPECT_LE(d, brute + 1e-12) << i;
+        EXPECT_GE(d, brute - 0.5 * (b - a).length() / n - 1e-9) << i;
+        const bool meets = FastWindingNumberAccess::segmentMeetsBox(a, b, lo, hi);
+        EXPECT_EQ(meets, d == 0.0) << i << " distance " << d;
+        touching += meets ? 1 : 0;
+    }
+    EXPECT_GT(touching, 20); // both cases seen
+}
+
+TEST(FastWindingNumber, BoundsBesideALongObliqueEdgeStayFiniteAndHold)
+{
+    // The stray triangle's long edges have a bounding box holding the sphere: bounds from the
+    // distance to that box were infinite everywhere near the sphere, and every voxel there was
+    // evaluated on its own (minutes for a vertex 1000 diagonals away).
+    const TriangleMesh m = sphereWithStray(300.0);
+    const FastWindingNumber fwn(m);
+    ASSERT_EQ(fwn.currentEdges(), 3u);
+    std::mt19937_64 rng(9);
+    std::uniform_real_distribution<double> u(-1.1, 1.1);
+    for (int i = 0; i < 60; ++i) {
+        const Vec3d q(u(rng), u(rng) - 0.5, u(rng) - 0.5); // beside the sphere, below the stray
+        const Vec3d lo = q - Vec3d(0.05), hi = q + Vec3d(0.05);
+        const double G = fwn.gradientBound(lo, hi), H = fwn.hessianBound(lo, hi);
+        ASSERT_TRUE(std::isfinite(G)) << i;
+        ASSERT_TRUE(std::isfinite(H)) << i;
+        for (int s = 0; s < 8; ++s) {
+            const Vec3d p(s & 4 ? hi[0] : lo[0], s & 2 ? hi[1] : lo[1], s & 1 ? hi[2] : lo[2]);
+            EXPECT_LE(fwn.gradient(p).length(), G * (1.0 + 1e-9));
+            EXPECT_LE((fwn.gradient(p) - fwn.gradient(q)).length(), H * (p - q).length() * (1.0 + 1e-6));
+        }
+    }
+}
+
+TEST(WindingSign, ALoneOpenTriangleIsLeftOutOfTheWindingNumber)
+{
+    // |w| of one triangle stays below 1/2, the sphere's is 0 or 1: leaving the triangle out is
+    // exact, and the rest has no boundary current (one estimate per group, no model)
+    const TriangleMesh m = sphereWithStray(5.0);
+    MeshToLevelSetStats stats;
+    MeshToLevelSetOptions o = options(SignMode::Auto, 64);
+    const auto grid = meshToLevelSet(m, o, &stats);
+    EXPECT_EQ(stats.sign, SignMode::Winding);
+    EXPECT_EQ(stats.currentEdges, 0u);
+    EXPECT_NE(stats.signReason.find("triangle 1280"), std::string::npos) << stats.signReason;
+    EXPECT_EQ(stats.windingIndividual, 0u);
+    const ExactReference ref(m);
+    const WindingSignReport active = compareSignsToWindingNumber(*grid, ref, 0.05, strideFor(*grid, 20000, false), false);
+    EXPECT_GT(active.decisive, 1000u);
+    EXPECT_EQ(active.signErrors, 0u);
+    const WindingSignReport all = compareSignsToWindingNumber(*grid, ref, 0.05, strideFor(*grid, 20000, true), true);
+    EXPECT_EQ(all.signErrors, 0u);
+    expectExactMagnitudes(*grid, ref, m.source);
+    // the band along the stray triangle is outside on both sides
+    const openvdb::Coord c = grid->transform().worldToIndexNodeCentered(openvdb::Vec3d(3.0, 0.5, 0.35));
+    uint64_t near = 0, negative = 0;
+    for (auto it = grid->tree().cbeginValueOn(); it; ++it) {
+        if ((it.getCoord() - c).asVec3d().length() > 6.0) continue;
+        ++near;
+        negative += *it < 0.0f ? 1 : 0;
+    }
+    EXPECT_GT(near, 0u);
+    EXPECT_EQ(negative, 0u);
+
+    // not for a hole of three edges (a closed mesh less one triangle), nor two stray triangles
+    TriangleMesh holed = makeIcosphere(Vec3d(0.0), 1.0, 3);
+    holed.triangles.erase(holed.triangles.begin() + 17);
+    MeshToLevelSetStats hs;
+    meshToLevelSet(holed, options(SignMode::Winding, 32), &hs);
+    EXPECT_EQ(hs.currentEdges, 3u);
+    EXPECT_EQ(hs.signReason.find("left out"), std::string::npos);
+    MeshToLevelSetStats ts;
+    meshToLevelSet(sphereWithStray(5.0, true), options(SignMode::Winding, 32), &ts);
+    EXPECT_EQ(ts.currentEdges, 6u);
+}
+
+TEST(WindingSign, TwoStrayTrianglesAreSignedExactlyAndLocally)
+{
+    // two stray triangles (nothing is left out): the leaves they cross have a boundary current
+    // through them; the local exact tier (the few triangles near the leaf summed exactly, a
+    // first-order model of the rest) decides them without an estimate per voxel, so the
+    // estimates made one voxel at a time (near the sphere) do not grow with the strays' length
+    // (before the tier: 12,565 and 70,352 of them)
+    uint64_t alone[2] = {0, 0}, active[2] = {0, 0};
+    for (int k = 0; k < 2; ++k) {
+        const TriangleMesh m = sphereWithStray(k == 0 ? 3.0 : 12.0, true);
+        SCOPED_TRACE(k);
+        MeshToLevelSetStats stats;
+        MeshToLevelSetOptions o = options(SignMode::Winding, 0);
+        o.voxelCount = 0;
+        o.voxelSize = 0.1;
+        const auto grid = meshToLevelSet(m, o, &stats);
+        EXPECT_EQ(stats.currentEdges, 6u);
+        alone[k] = stats.windingIndividual;
+        active[k] = stats.activeVoxels;
+        if (k == 1) continue;
+        const ExactReference ref(m);
+        const WindingSignReport a = compareSignsToWindingNumber(*grid, ref, 0.05, strideFor(*grid, 20000, false), false);
+        EXPECT_GT(a.decisive, 1000u);
+        EXPECT_EQ(a.signErrors, 0u);
+        const WindingSignReport all = compareSignsToWindingNumber(*grid, ref, 0.05, strideFor(*grid, 20000, true), true);
+        EXPECT_EQ(all.signErrors, 0u);
+        expectExactMagnitudes(*grid, ref, m.source);
+    }
+    std::printf("two stray triangles, 3 and 12 long: %llu and %llu estimates alone for %llu and %llu active voxels\n",
+                (unsigned long long)alone[0], (unsigned long long)alone[1], (unsigned long long)active[0],
+                (unsigned long long)active[1]);
+    EXPECT_GT(active[1], active[0] + 4000);
+    EXPECT_LT(alone[1], alone[0] + (active[1] - active[0]) / 10);
+}
+
+TEST(WindingSign, TheTilePassStopsWhenInterrupted)
+{
+    // the winding sign's passes poll at 97 %, the main road's distances below 96 %
+    struct StopAfter : openvdb::util::NullInterrupter
+    {
+        int calls = 0;
+        bool wasInterrupted(int percent) override { return percent == 97 && ++calls > 1; }
+    } stop;
+    const TriangleMesh m = sphereWithStray(5.0, true);
+    MeshToLevelSetOptions o = options(SignMode::Unsigned, 64);
+    const auto grid = meshToLevelSet(m, o);
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    const FastWindingNumber fwn(m);
+    EXPECT_THROW(signInactiveByWindingNumber(*grid, fwn, m.bounds(), nullptr, &stop), InterruptedError);
+    EXPECT_GT(stop.calls, 1);
+    // and the main road's winding sign stops too
+    StopAfter again;
+    o.sign = SignMode::Winding;
+    o.interrupter = &again;
+    EXPECT_THROW(meshToLevelSet(m, o), InterruptedError);
 }

@@ -53,6 +53,7 @@
 #include <levelforge/core/TriangleMesh.h>
 
 #include <openvdb/openvdb.h>
+#include <openvdb/util/NullInterrupter.h>
 
 #include <cstdint>
 #include <limits>
@@ -206,8 +207,11 @@ struct WindingSignStats
 ///                       world units)
 /// @param[in]     meshBounds  the mesh's bounding box, world units
 /// @param[out]    stats  optional counters
+/// @param[in]     interrupter  optional; polled by work done. When it asks to stop,
+///                       InterruptedError is thrown and the grid is left partly signed.
 void signInactiveByWindingNumber(openvdb::FloatGrid& grid, const FastWindingNumber& fwn, const BBoxd& meshBounds,
-                                 WindingSignStats* stats = nullptr);
+                                 WindingSignStats* stats = nullptr,
+                                 openvdb::util::NullInterrupter* interrupter = nullptr);
 
 /// The margin (in winding number) by which a value carried from an estimate (by a bound or a
 /// first-order model) must stay away from ±1/2 to be decided without an estimate of its own: it
