@@ -75,7 +75,7 @@ struct Scratch
     std::vector<double> values;
     // the local exact tier: the triangles near the leaf, the boundary of their union (a, b,
     // signed current), the half-edges it is made from
-    std::vector<uint32_t> nearTris;
+    std::vector<uint32_t> nearTris, rest;
     struct NearEdge { Vec3d a, b; double current; };
     std::vector<NearEdge> nearEdges;
     std::vector<std::pair<std::array<double, 6>, int>> halfEdges;

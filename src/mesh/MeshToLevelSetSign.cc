@@ -21,39 +21,29 @@ namespace meshtols_internal {
 
 namespace {
 
-/// Triangles near a leaf up to which the local exact tier is used (each costs one solid angle
-/// per undecided voxel; a tree evaluation costs a few dozen).
-constexpr size_t kNearTrianglesMax = 64;
-/// How far (voxels) beyond the leaf's voxel centres the near triangles are gathered: the
-/// boundary of the rest is at least this far from the leaf.
-constexpr double kNearReach = 6.0;
+/// Triangles near a region up to which the local exact tier is used there (each costs one
+/// solid angle per undecided voxel, ~40 ns; an estimate of w from the tree costs 10-25 µs near
+/// a rim).
+constexpr size_t kNearTrianglesMax = 96;
+/// How far (voxels) beyond a region's voxel centres its near triangles are gathered: the whole
+/// leaf with 6 (the leaf, then its 4×4×4 blocks, modelled), else each 4×4×4 block with 4.
+constexpr double kLeafReach = 6.0, kBlockReach = 4.0;
 
-/// The local exact tier, for the undecided voxels of a leaf near a boundary current (a hole's
-/// rim, a stray open triangle): w = w_N + w_F, w_N the winding number of the triangles N whose
-/// box meets the leaf's box grown by kNearReach voxels (summed exactly, one solid angle per
-/// triangle and voxel), w_F that of the rest F. No triangle of F comes within kNearReach of the
-/// leaf, so w_F is smooth there; per 4×4×4 block a first-order model of it at the block's
-/// centre c: w_F(c) = w(c) − w_N(c) (one estimate), ∇w_F(c) = ∇w(c) − ∇w_N(c) (the edge tree's
-/// gradient with its error bound Be, less the exact Biot–Savart field of ∂N), and a bound H of
-/// ‖∇∇w_F‖ over the block from the current of ∂F = ∂M − ∂N: every element of it is an edge of a
-/// triangle of F, so an edge that meets the grown box (all of whose triangles are in N) carries
-/// none, and any other carries at most |I_M(e)| + |I_N(e)|. A voxel v then gets
-/// w_N(v) + w_F(c) + ∇w_F·(v − c) ± (½ H |v − c|² + Be |v − c|); what this leaves undecided
-/// stays in s.undecided for the tiers below. Exact in the sense of decide(): the only estimate
-/// is w(c)'s.
-bool localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const double* lower)
+/// The triangles N near the index box [lo, hi] grown by `reach` voxels, and their boundary ∂N
+/// (half-edges cancelled by exact position) into the scratch; the grown box (world units) into
+/// skipLo / skipHi. False (nothing kept) when N has more than kNearTrianglesMax triangles.
+bool gatherNear(const Context& ctx, Scratch& s, const Vec3d& lo, const Vec3d& hi, double reach, Vec3d& skipLo,
+                Vec3d& skipHi)
 {
-    using namespace winding_internal;
     const double h = ctx.voxelSize;
     const FastWindingNumber& fwn = *ctx.fwn;
-    const Vec3d o(origin.x(), origin.y(), origin.z());
-    // the grown box (index space), and the gather box a hair larger, so that an edge the slab
-    // test finds meeting the grown box has all its triangles gathered whatever the rounding
-    const Vec3d skipLo = (o - Vec3d(0.5 + kNearReach)) * h, skipHi = (o + Vec3d(7.5 + kNearReach)) * h;
+    // the gather box a hair larger than the grown box, so that an edge the slab test finds
+    // meeting the grown box has all its triangles gathered whatever the rounding
+    skipLo = (lo - Vec3d(reach)) * h;
+    skipHi = (hi + Vec3d(reach)) * h;
     const Vec3d pad(1e-6 * h);
     FastWindingNumberAccess::gather(fwn, skipLo - pad, skipHi + pad, s.nearTris);
     if (s.nearTris.size() > kNearTrianglesMax) return false;
-    // ∂N: the half-edges of N, opposite ones (by exact position) cancelled
     s.halfEdges.clear();
     for (uint32_t t : s.nearTris) {
         const double* c = FastWindingNumberAccess::triangle(fwn, t);
@@ -61,13 +51,12 @@ bool localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const d
             const double* p = c + 3 * k;
             const double* q = c + 3 * ((k + 1) % 3);
             const bool forward = std::lexicographical_compare(p, p + 3, q, q + 3);
-            const double* lo = forward ? p : q;
-            const double* hi = forward ? q : p;
-            s.halfEdges.push_back({{lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]}, forward ? 1 : -1});
+            const double* a = forward ? p : q;
+            const double* b = forward ? q : p;
+            s.halfEdges.push_back({{a[0], a[1], a[2], b[0], b[1], b[2]}, forward ? 1 : -1});
         }
     }
-    std::sort(s.halfEdges.begin(), s.halfEdges.end(),
-              [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::sort(s.halfEdges.begin(), s.halfEdges.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     s.nearEdges.clear();
     for (size_t i = 0; i < s.halfEdges.size();) {
         size_t j = i;
@@ -79,6 +68,22 @@ bool localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const d
         }
         i = j;
     }
+    return true;
+}
+
+/// Decides the voxels s.undecided[first, last) of the cube of `side` voxels at offset `base`
+/// of the leaf at `origin` with the near set in the scratch (gatherNear()): a first-order model
+/// of w_F at the cube's centre plus the exact w_N of each voxel (see localExactTier()). The
+/// undecided ones are appended to s.group2.
+void decideByNearSet(const Context& ctx, const Coord& origin, Scratch& s, const double* lower, uint32_t base, int side,
+                     size_t first, size_t last, const Vec3d& skipLo, const Vec3d& skipHi)
+{
+    using namespace winding_internal;
+    const double h = ctx.voxelSize;
+    const FastWindingNumber& fwn = *ctx.fwn;
+    const auto indexOf = [&](uint32_t i) {
+        return Vec3d(double(origin.x() + int(i >> 6)), double(origin.y() + int((i >> 3) & 7)), double(origin.z() + int(i & 7)));
+    };
     const auto wNear = [&](const Vec3d& p) {
         double sum = 0.0;
         for (uint32_t t : s.nearTris) {
@@ -87,58 +92,118 @@ bool localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const d
         }
         return sum / (4.0 * 3.14159265358979323846);
     };
-    const auto indexOf = [&](uint32_t i) {
-        return Vec3d(double(origin.x() + int(i >> 6)), double(origin.y() + int((i >> 3) & 7)), double(origin.z() + int(i & 7)));
-    };
-    // the undecided voxels by block: the whole leaf first, then 4×4×4 blocks
-    for (int shift = 3; shift >= 2 && !s.undecided.empty(); --shift) {
-        const uint32_t m = (0xffu << shift) & 7u;
-        const auto block = [m](uint32_t i) { return (((i >> 6) & m) << 6) | (((i >> 3) & m) << 3) | (i & m); };
-        if (shift < 3)
-            std::sort(s.undecided.begin(), s.undecided.end(), [&](uint32_t a, uint32_t b) {
-                const uint32_t ba = block(a), bb = block(b);
-                return ba < bb || (ba == bb && a < b);
-            });
-        const double side = double(1 << shift);
-        s.group2.clear(); // still undecided
-        for (size_t first = 0; first < s.undecided.size();) {
-            const uint32_t base = block(s.undecided[first]);
-            size_t last = first;
-            while (last < s.undecided.size() && block(s.undecided[last]) == base) ++last;
-            const Vec3d c = indexOf(base) + Vec3d(0.5 * (side - 1.0));
-            const Vec3d cw = c * h;
-            const Vec3d lo = (indexOf(base) - Vec3d(0.5)) * h, hi = (indexOf(base) + Vec3d(side - 0.5)) * h;
-            double H = FastWindingNumberAccess::hessianBoundBeyond(fwn, lo, hi, skipLo, skipHi);
-            double be = 0.0;
-            Vec3d B = fwn.gradient(cw, be);
-            for (const Scratch::NearEdge& e : s.nearEdges) {
-                B -= FastWindingNumberAccess::edgeGradient(e.a, e.b, e.current, cw);
-                if (!FastWindingNumberAccess::segmentMeetsBox(e.a, e.b, skipLo, skipHi))
-                    H += FastWindingNumberAccess::edgeHessianBound(e.a, e.b, e.current, lo, hi);
-            }
-            H *= h * h;
-            B *= h;
-            be *= h;
-            ++s.windingEvaluations;
-            const double wF = fwn(cw) - wNear(cw);
-            const bool model = std::isfinite(H) && std::isfinite(wF);
-            for (size_t k = first; k < last; ++k) {
-                const uint32_t i = s.undecided[k];
-                int v = -1;
-                if (!(lower[i] > kOnSurface)) v = 0; // on the surface: 0 either way
-                else if (model) {
-                    const Vec3d d = indexOf(i) - c;
-                    const double r = d.length();
-                    v = decide(wNear(indexOf(i) * h) + wF + B.dot(d), 0.5 * H * r * r + be * r);
-                }
-                if (v >= 0) s.inside[i] = uint8_t(v);
-                else s.group2.push_back(i);
-            }
-            first = last;
-        }
-        s.undecided.swap(s.group2);
+    const Vec3d c = indexOf(base) + Vec3d(0.5 * (side - 1.0));
+    const Vec3d cw = c * h;
+    const Vec3d lo = (indexOf(base) - Vec3d(0.5)) * h, hi = (indexOf(base) + Vec3d(side - 0.5)) * h;
+    double H = FastWindingNumberAccess::hessianBoundBeyond(fwn, lo, hi, skipLo, skipHi);
+    double be = 0.0;
+    Vec3d B = fwn.gradient(cw, be);
+    for (const Scratch::NearEdge& e : s.nearEdges) {
+        B -= FastWindingNumberAccess::edgeGradient(e.a, e.b, e.current, cw);
+        if (!FastWindingNumberAccess::segmentMeetsBox(e.a, e.b, skipLo, skipHi))
+            H += FastWindingNumberAccess::edgeHessianBound(e.a, e.b, e.current, lo, hi);
     }
-    return true;
+    H *= h * h;
+    B *= h;
+    be *= h;
+    ++s.windingEvaluations;
+    const double wF = fwn(cw) - wNear(cw);
+    const bool model = std::isfinite(H) && std::isfinite(wF);
+    for (size_t k = first; k < last; ++k) {
+        const uint32_t i = s.undecided[k];
+        int v = -1;
+        if (!(lower[i] > kOnSurface)) v = 0; // on the surface: 0 either way
+        else if (model) {
+            const Vec3d d = indexOf(i) - c;
+            const double r = d.length();
+            v = decide(wNear(indexOf(i) * h) + wF + B.dot(d), 0.5 * H * r * r + be * r);
+        }
+        if (v >= 0) s.inside[i] = uint8_t(v);
+        else s.group2.push_back(i);
+    }
+}
+
+/// The local exact tier, for the undecided voxels of a leaf near a boundary current (a hole's
+/// rim, a stray open triangle): w = w_N + w_F, w_N the winding number of the triangles N whose
+/// box meets the region's box grown by a reach of a few voxels (summed exactly, one solid
+/// angle per triangle and voxel), w_F that of the rest F. No triangle of F comes within the
+/// reach of the region, so w_F is smooth there: a first-order model of it at the centre c of
+/// a cube: w_F(c) = w(c) − w_N(c) (one estimate), ∇w_F(c) = ∇w(c) − ∇w_N(c) (the edge tree's
+/// gradient with its error bound Be, less the exact Biot–Savart field of ∂N), and a bound H of
+/// ‖∇∇w_F‖ over the cube from the current of ∂F = ∂M − ∂N: every element of it is an edge of a
+/// triangle of F, so an edge that meets the grown box (all of whose triangles are in N) carries
+/// none, and any other carries at most |I_M(e)| + |I_N(e)|. A voxel v then gets
+/// w_N(v) + w_F(c) + ∇w_F·(v − c) ± (½ H |v − c|² + Be |v − c|). Regions: the whole leaf
+/// (reach kLeafReach; models on the leaf, then on its 4×4×4 and 2×2×2 blocks) when few
+/// triangles are near it, else each 4×4×4 block with its own near set (reach kBlockReach;
+/// models on it, then on its 2×2×2 blocks; fine meshes).
+/// What this leaves undecided stays in s.undecided for the tiers below. Exact in the sense of
+/// decide(): the only estimates are the w(c).
+void localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const double* lower)
+{
+    const Vec3d o(origin.x(), origin.y(), origin.z());
+    const auto blockSort = [&](uint32_t m) {
+        const auto block = [m](uint32_t i) { return (((i >> 6) & m) << 6) | (((i >> 3) & m) << 3) | (i & m); };
+        std::sort(s.undecided.begin(), s.undecided.end(), [&](uint32_t a, uint32_t b) {
+            const uint32_t ba = block(a), bb = block(b);
+            return ba < bb || (ba == bb && a < b);
+        });
+        return block;
+    };
+    Vec3d skipLo, skipHi;
+    if (gatherNear(ctx, s, o, o + Vec3d(7.0), kLeafReach, skipLo, skipHi)) {
+        // the whole leaf, then its 4×4×4 blocks, with the leaf's near set
+        s.group2.clear();
+        decideByNearSet(ctx, origin, s, lower, 0, 8, 0, s.undecided.size(), skipLo, skipHi);
+        s.undecided.swap(s.group2);
+        if (s.undecided.empty()) return;
+        for (int side = 4; side >= 2 && !s.undecided.empty(); side /= 2) {
+            const auto block = blockSort(uint32_t(8 - side));
+            s.group2.clear();
+            for (size_t first = 0; first < s.undecided.size();) {
+                const uint32_t base = block(s.undecided[first]);
+                size_t last = first;
+                while (last < s.undecided.size() && block(s.undecided[last]) == base) ++last;
+                decideByNearSet(ctx, origin, s, lower, base, side, first, last, skipLo, skipHi);
+                first = last;
+            }
+            s.undecided.swap(s.group2);
+        }
+        return;
+    }
+    // each 4×4×4 block with its own near set
+    const auto block = blockSort(4u);
+    s.group2.clear();
+    for (size_t first = 0; first < s.undecided.size();) {
+        const uint32_t base = block(s.undecided[first]);
+        size_t last = first;
+        while (last < s.undecided.size() && block(s.undecided[last]) == base) ++last;
+        const Vec3d bo = o + Vec3d(double(base >> 6), double((base >> 3) & 7), double(base & 7));
+        if (gatherNear(ctx, s, bo, bo + Vec3d(3.0), kBlockReach, skipLo, skipHi)) {
+            // the block, then its 2×2×2 blocks with the same near set
+            const size_t mark = s.group2.size();
+            decideByNearSet(ctx, origin, s, lower, base, 4, first, last, skipLo, skipHi);
+            if (s.group2.size() > mark) {
+                s.rest.assign(s.group2.begin() + long(mark), s.group2.end());
+                s.group2.resize(mark);
+                const auto sub = [](uint32_t i) { return (((i >> 6) & 6u) << 6) | (((i >> 3) & 6u) << 3) | (i & 6u); };
+                std::sort(s.rest.begin(), s.rest.end(), [&](uint32_t a, uint32_t b) {
+                    return sub(a) < sub(b) || (sub(a) == sub(b) && a < b);
+                });
+                s.undecided.swap(s.rest); // decideByNearSet reads s.undecided
+                for (size_t f = 0; f < s.undecided.size();) {
+                    size_t l = f;
+                    while (l < s.undecided.size() && sub(s.undecided[l]) == sub(s.undecided[f])) ++l;
+                    decideByNearSet(ctx, origin, s, lower, sub(s.undecided[f]), 2, f, l, skipLo, skipHi);
+                    f = l;
+                }
+                s.undecided.swap(s.rest);
+            }
+        } else
+            s.group2.insert(s.group2.end(), s.undecided.begin() + long(first), s.undecided.begin() + long(last));
+        first = last;
+    }
+    s.undecided.swap(s.group2);
 }
 
 } // namespace
@@ -174,13 +239,11 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
     // segment end (0.25 voxel)
     const double g = ctx.fwn->gradientBound((indexOf(0) - Vec3d(0.5)) * h, (indexOf(511) + Vec3d(0.5)) * h) * h;
     // a boundary current through the leaf (a hole's rim, an open triangle): the groups cannot
-    // carry a value, so the local exact tier takes every voxel at once
-    bool local = false;
-    if (!std::isfinite(g)) {
+    // carry a value, every voxel goes to the blocks' models
+    const bool local = !std::isfinite(g);
+    if (local) {
         s.undecided.resize(512);
         for (uint32_t i = 0; i < 512; ++i) s.undecided[i] = i;
-        local = localExactTier(ctx, origin, s, lower);
-        if (local && s.undecided.empty()) return;
     }
     // fixed directions off the lattice for the segment ends
     static const Vec3d kDir[3] = {Vec3d(0.5257311121, 0.3090169944, 0.7925052400).unit(),
@@ -284,8 +347,6 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
         const uint32_t m = (0xffu << shift) & 7u;
         return (((i >> 6) & m) << 6) | (((i >> 3) & m) << 3) | (i & m);
     };
-    if (g > 0.0 && !local) localExactTier(ctx, origin, s, lower);
-    if (s.undecided.empty()) return;
     // tier 2 (near a boundary edge, or where |w| is near 1/2): per 4×4×4 block, then per 2×2×2
     // block for what the first leaves undecided, a first-order model at the block's voxel
     // farthest from the surface S (value, gradient B from the edge tree with its error bound
@@ -338,7 +399,10 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
         }
         s.undecided.swap(s.group2);
     }
-    // the rest (next to a hole's rim, mostly): their own estimates, a 4×4×4 block's voxels in
+    // what the models leave (next to a hole's rim, mostly): the local exact tier where few
+    // triangles are near
+    if (!s.undecided.empty()) localExactTier(ctx, origin, s, lower);
+    // the rest: their own estimates, a 4×4×4 block's voxels in
     // one traversal of the tree (sorted by block above)
     for (size_t first = 0; first < s.undecided.size();) {
         const uint32_t base = blockOf(s.undecided[first], 2);

@@ -27,8 +27,11 @@
 ///        its voxel farthest from the surface, carried to the other groups by the signed count
 ///        of surface crossings (±1 each) and to each group's voxels with the gradient bound times
 ///        the hops; where that cannot decide (near a hole's rim, or |w| near 1/2), first-order
-///        models (value and exact gradient, Hessian bound) per 4³ block, and as a last resort an
-///        estimate per voxel. Tiles are signed per VDB node the same way
+///        models (value and exact gradient, Hessian bound) per 4³ and 2³ block; then, where few
+///        triangles are near, w split into the near triangles' exact sum plus a first-order
+///        model of the rest (whose boundary is a few voxels away); as a last resort an
+///        estimate per voxel. A lone open triangle beside closed parts is left out of w (alone
+///        it never reaches 1/2, so that is exact). Tiles are signed per VDB node the same way
 ///        (signInactiveByWindingNumber(); docs/algorithm.md, "Sign modes");
 ///      - Unsigned: no sign: the exact distance to the surface, for any surface (open sheets,
 ///        cloth, soups); the band is the exterior width; the grid class is GRID_UNKNOWN;
