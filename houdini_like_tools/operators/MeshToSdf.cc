@@ -89,8 +89,30 @@ void cookMeshToSdf(OperatorArgs& args)
     const bool haveReference = args.isSet("reference");
     if (haveReference) reference = readReferenceGrid(args.getString("reference"));
 
+    // --attribute: the names, comma-separated ("Cd,N"); the reader keeps only those
+    MeshReadOptions readOptions;
+    if (args.isSet("attribute")) {
+        const std::string& list = args.getString("attribute");
+        size_t start = 0;
+        while (start <= list.size()) {
+            const size_t comma = std::min(list.find(',', start), list.size());
+            std::string name = list.substr(start, comma - start);
+            name.erase(0, name.find_first_not_of(" \t"));
+            name.erase(name.find_last_not_of(" \t") + 1);
+            if (name.empty())
+                throw UsageError("invalid value '" + list + "' for --attribute: an empty attribute name");
+            readOptions.attributes.push_back(name);
+            start = comma + 1;
+        }
+    }
     MeshReadInfo info;
-    const TriangleMesh mesh = readMeshInput(input, &info);
+    TriangleMesh mesh;
+    if (readOptions.attributes.empty() || isBuiltinMeshName(input)) {
+        mesh = readMeshInput(input, &info);
+    } else {
+        const ReadingScope reading; // SIGINT / SIGTERM end the process at once while reading
+        mesh = readMesh(input, readOptions, info);
+    }
     if (info.droppedFaces > 0) {
         err << "levelforge: warning: " << input << ": " << info.droppedFaces
             << " faces with fewer than three distinct corners were dropped\n";
@@ -108,6 +130,7 @@ void cookMeshToSdf(OperatorArgs& args)
     readGridParams(args, options);
     if (args.isSet("fog-grid")) options.fogGridName = args.getString("fog-grid");
     if (args.isSet("primitive-index-grid")) options.primitiveIndexGridName = args.getString("primitive-index-grid");
+    options.attributes = readOptions.attributes; // a builtin mesh has none: the pipeline says so
     if (haveReference) {
         // the reference's transform, and its band widths unless given here
         options.transform = reference.transform;
@@ -163,6 +186,9 @@ void cookMeshToSdf(OperatorArgs& args)
     if (grids.primitiveIndex)
         out << "  primitive index grid '" << grids.primitiveIndex->getName() << "': "
             << withThousands(grids.primitiveIndex->activeVoxelCount()) << " active voxels\n";
+    for (const openvdb::GridBase::Ptr& a : grids.attributes)
+        out << "  attribute grid '" << a->getName() << "' (" << a->valueType() << "): "
+            << withThousands(a->activeVoxelCount()) << " active voxels\n";
     out
         << "  mesh: " << withThousands(mesh.triangleCount()) << " triangles, "
         << withThousands(mesh.vertexCount()) << " vertices\n"
@@ -272,6 +298,14 @@ LEVELFORGE_REGISTER_OPERATOR(
                              "0-based index of the closest input face (the polygon before triangulation, "
                              "in file order); background -1. Needs --method chang, --expansion none and no "
                              "--fill-interior"))
+        .param(Param::string("attribute", "Attributes",
+                             "Also write the mesh's per-vertex attributes, comma-separated (Cd,N,uv), each "
+                             "to a grid of the same name: a vector grid (vec3s) for Cd (colour: OBJ 'v x y z r "
+                             "g b', PLY red/green/blue), N (normal: OBJ vn, PLY nx/ny/nz) and uv (OBJ vt, PLY "
+                             "u/v or s/t; w = 0), a float grid for any other PLY vertex property by its name. "
+                             "Each active voxel holds the barycentric interpolation of the corner values at "
+                             "its exact closest point on the surface (OBJ vt/vn per face corner: seams are "
+                             "kept). Needs --method chang, --expansion none and no --fill-interior"))
         .param(Param::flag("quiet", "Quiet", "Print no progress on stderr"))
         .param(Param::flag("report", "Report",
                            "Print the mesh validation summary and conversion statistics"))
@@ -285,6 +319,7 @@ LEVELFORGE_REGISTER_OPERATOR(
         .example("levelforge mesh-to-sdf bunny.obj bunny.vdb --voxel-size 0.01 --fog-grid density "
                  "--primitive-index-grid primitive")
         .example("levelforge mesh-to-sdf prop.obj prop.vdb --reference set.vdb")
+        .example("levelforge mesh-to-sdf scan.ply scan.vdb --voxel-size 0.01 --attribute Cd,N")
         .cook(cookMeshToSdf));
 
 } // namespace levelforge::ops

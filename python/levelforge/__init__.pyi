@@ -2,7 +2,7 @@
 # Type stubs of the levelforge package (python/levelforge/__init__.py + the compiled
 # levelforge._levelforge). tests/python/test_api.py checks that every name, parameter and default
 # here matches the module.
-from collections.abc import Iterable, Iterator, MutableMapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, MutableMapping, Sequence
 from os import PathLike
 from typing import Any, Callable, Literal, Optional, Union, overload
 
@@ -142,8 +142,9 @@ class Adf:
 
 # ---------------------------------------------------------------- functions
 
-def read_mesh(path: _Path) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int32]]:
-    """(vertices float64 (N, 3), faces int32 (M, 3)) of a mesh file or "builtin:<shape>"."""
+def read_mesh(path: _Path, *, attribute: Union[str, Sequence[str], None] = None) -> tuple[Any, ...]:
+    """(vertices float64 (N, 3), faces int32 (M, 3)) of a mesh file or "builtin:<shape>"; with
+    attribute="Cd,N" also {name: float32 (M, 3, C)} per-corner values."""
 
 def write_mesh(path: _Path, vertices: npt.ArrayLike, faces: npt.ArrayLike) -> None: ...
 def validate_mesh(vertices: npt.ArrayLike, faces: npt.ArrayLike, source: Optional[str] = None) -> dict[str, Any]: ...
@@ -168,11 +169,16 @@ def mesh_to_sdf(
     max_voxels: int = 2000000000,
     grid_name: str = "surface",
     source: Optional[str] = None,
+    fog_grid: Optional[str] = None,
+    reference: Optional[_Path] = None,
+    primitive_index_grid: Optional[str] = None,
+    attribute: Optional[Mapping[str, npt.ArrayLike]] = None,
     progress: _Progress = None,
     return_stats: bool = False,
 ) -> Any:
     """Triangle mesh -> narrow-band signed distance level set (`levelforge mesh-to-sdf`).
-    Returns a Grid, or (Grid, stats dict) with return_stats=True."""
+    Returns a Grid, or (Grid, stats dict) with return_stats=True; with fog_grid,
+    primitive_index_grid or attribute a dict {grid name: Grid or (coords, values)}."""
 
 def expand(
     grid: Grid,

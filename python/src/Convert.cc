@@ -105,23 +105,70 @@ py::array_t<T> viewOf(std::vector<V>&& data, size_t rowsCount)
                           reinterpret_cast<const T*>(owner->data()), free);
 }
 
-TriangleMesh loadMesh(const std::string& path)
+TriangleMesh loadMesh(const std::string& path, const MeshReadOptions& options = {})
 {
-    if (isBuiltinMeshName(path)) return makeBuiltinMesh(path);
-    return readMesh(path);
+    if (isBuiltinMeshName(path)) {
+        TriangleMesh m = makeBuiltinMesh(path);
+        if (!options.attributes.empty())
+            throw InvalidArgumentError(path + ": no vertex attribute '" + options.attributes.front() + "' (it has none)");
+        return m;
+    }
+    MeshReadInfo info;
+    return readMesh(path, options, info);
 }
 
-py::tuple readMeshPy(py::handle pathObj)
+/// The names of an `attribute` argument: "Cd,N" (the CLI's form) or a sequence of names.
+std::vector<std::string> attributeNames(py::handle obj)
+{
+    std::vector<std::string> names;
+    auto add = [&](const std::string& list) {
+        size_t start = 0;
+        while (start <= list.size()) {
+            const size_t comma = std::min(list.find(',', start), list.size());
+            std::string n = list.substr(start, comma - start);
+            n.erase(0, n.find_first_not_of(" \t"));
+            n.erase(n.find_last_not_of(" \t") + 1);
+            if (n.empty()) throw InvalidArgumentError("attribute: an empty attribute name in '" + list + "'");
+            names.push_back(n);
+            start = comma + 1;
+        }
+    };
+    if (py::isinstance<py::str>(obj)) {
+        add(obj.cast<std::string>());
+    } else {
+        for (py::handle h : obj) add(py::str(h).cast<std::string>());
+    }
+    return names;
+}
+
+/// Per-corner values of one attribute, float32 (M, 3, C).
+py::array_t<float> cornerArray(const MeshAttribute& a, size_t triangles)
+{
+    const py::ssize_t C = a.components;
+    py::array_t<float> out({py::ssize_t(triangles), py::ssize_t(3), C});
+    std::copy(a.values.begin(), a.values.end(), out.mutable_data());
+    return out;
+}
+
+py::tuple readMeshPy(py::handle pathObj, py::object attribute)
 {
     const std::string path = toPath(pathObj);
-    TriangleMesh mesh = runReleased([&] { return loadMesh(path); });
+    MeshReadOptions ro;
+    if (!attribute.is_none()) ro.attributes = attributeNames(attribute);
+    TriangleMesh mesh = runReleased([&] { return loadMesh(path, ro); });
+    py::dict attrs;
+    for (const MeshAttribute& a : mesh.attributes) attrs[py::str(a.name)] = cornerArray(a, mesh.triangles.size());
+    std::vector<MeshAttribute>().swap(mesh.attributes);
     if (mesh.points.size() > size_t(std::numeric_limits<int32_t>::max())) {
         throw py::value_error(path + ": " + std::to_string(mesh.points.size()) +
                               " vertices cannot be indexed by int32 faces");
     }
     // Indices < 2^31 have the same bits as uint32 and int32: the faces are viewed, not copied.
     const size_t nv = mesh.points.size(), nf = mesh.triangles.size();
-    return py::make_tuple(viewOf<double>(std::move(mesh.points), nv), viewOf<int32_t>(std::move(mesh.triangles), nf));
+    if (attribute.is_none())
+        return py::make_tuple(viewOf<double>(std::move(mesh.points), nv), viewOf<int32_t>(std::move(mesh.triangles), nf));
+    return py::make_tuple(viewOf<double>(std::move(mesh.points), nv), viewOf<int32_t>(std::move(mesh.triangles), nf),
+                          attrs);
 }
 
 void writeMeshPy(py::handle pathObj, py::handle vertices, py::handle faces)
@@ -199,15 +246,112 @@ void addSignStats(py::dict& d, const S& s)
 
 constexpr bool kHaveSignModes = HasSignModes<MeshToSdfOptions>::value;
 
+/// mesh_to_sdf(attribute={name: values}): per-vertex (N,), (N, C) or per-corner (M, 3, C) values,
+/// C = 1 or 3, spread over the corners of @p mesh.
+void addAttributes(TriangleMesh& mesh, py::handle obj)
+{
+    if (!py::isinstance<py::dict>(obj))
+        throw InvalidArgumentError("attribute: give a dict {name: values} of per-vertex (N, C) or per-corner "
+                                   "(M, 3, C) values (read_mesh(path, attribute='Cd,N') returns them for a file)");
+    const size_t nV = mesh.points.size(), nT = mesh.triangles.size();
+    for (auto item : obj.cast<py::dict>()) {
+        MeshAttribute a;
+        a.name = py::str(item.first).cast<std::string>();
+        auto arr = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(item.second);
+        if (!arr) {
+            PyErr_Clear();
+            throw InvalidArgumentError("attribute '" + a.name + "': the values are not a numeric array");
+        }
+        const py::ssize_t nd = arr.ndim();
+        bool perVertex = false;
+        int C = 0;
+        if (nd == 1 && size_t(arr.shape(0)) == nV) {
+            perVertex = true;
+            C = 1;
+        } else if (nd == 2 && size_t(arr.shape(0)) == nV) {
+            perVertex = true;
+            C = int(arr.shape(1));
+        } else if (nd == 3 && size_t(arr.shape(0)) == nT && arr.shape(1) == 3) {
+            C = int(arr.shape(2));
+        }
+        if (C != 1 && C != 3) {
+            std::string shape;
+            for (py::ssize_t d = 0; d < nd; ++d) shape += (d ? ", " : "") + std::to_string(arr.shape(d));
+            throw InvalidArgumentError("attribute '" + a.name + "': expected per-vertex values (" + std::to_string(nV) +
+                                       ", C) or per-corner values (" + std::to_string(nT) + ", 3, C) with C = 1 or 3, got (" +
+                                       shape + ")");
+        }
+        a.components = C;
+        const float* v = arr.data();
+        if (perVertex) {
+            a.values.resize(nT * 3 * size_t(C));
+            for (size_t t = 0; t < nT; ++t)
+                for (int k = 0; k < 3; ++k)
+                    std::copy_n(v + size_t(mesh.triangles[t][k]) * size_t(C), size_t(C),
+                                a.values.data() + (3 * t + size_t(k)) * size_t(C));
+        } else {
+            a.values.assign(v, v + nT * 3 * size_t(C));
+        }
+        mesh.attributes.push_back(std::move(a));
+    }
+}
+
+/// The active voxels of a grid that is not a float grid: (coords int32 (K, 3), values (K,) or (K, 3)).
+template<typename GridT>
+py::tuple activeArrays(const GridT& grid)
+{
+    using ValueT = typename GridT::ValueType;
+    constexpr bool vec = openvdb::VecTraits<ValueT>::IsVec;
+    using Scalar = std::conditional_t<vec, float, ValueT>;
+    const py::ssize_t k = py::ssize_t(grid.activeVoxelCount());
+    py::array_t<int32_t> coords({k, py::ssize_t(3)});
+    py::array_t<Scalar> values = vec ? py::array_t<Scalar>({k, py::ssize_t(3)}) : py::array_t<Scalar>(k);
+    int32_t* c = coords.mutable_data();
+    Scalar* v = values.mutable_data();
+    py::ssize_t i = 0;
+    for (auto it = grid.tree().cbeginValueOn(); it && i < k; ++it) {
+        openvdb::CoordBBox box;
+        it.getBoundingBox(box);
+        for (auto ijk = box.begin(); ijk && i < k; ++ijk, ++i) {
+            for (int a = 0; a < 3; ++a) c[3 * i + a] = (*ijk)[a];
+            if constexpr (vec) {
+                for (int a = 0; a < 3; ++a) v[3 * i + a] = float((*it)[a]);
+            } else {
+                v[i] = *it;
+            }
+        }
+    }
+    return py::make_tuple(coords, values);
+}
+
+/// A grid of meshToSdfGrids() for Python: a FloatGrid as a Grid, others as activeArrays().
+py::object extraGrid(const openvdb::GridBase::Ptr& g)
+{
+    if (auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(g)) return py::cast(PyGrid{f});
+    if (auto i = openvdb::gridPtrCast<openvdb::Int32Grid>(g)) return activeArrays(*i);
+    if (auto v = openvdb::gridPtrCast<openvdb::Vec3SGrid>(g)) return activeArrays(*v);
+    throw InvalidArgumentError("grid '" + g->getName() + "' of type " + g->valueType() + " has no Python form");
+}
+
 py::object meshToSdfPy(py::handle vertices, py::handle faces, std::optional<double> voxelSize, int voxelCount,
                        double exteriorBand, double interiorBand, bool worldUnits, const std::string& expansion,
                        double exactBand, const std::string& method, const std::string& shell,
                        const std::string& shellCoverage, bool conservative, const std::string& sign,
                        bool fillInterior, double windingAccuracy, uint64_t maxVoxels,
-                       const std::string& gridName, py::object source, py::object progress, bool returnStats)
+                       const std::string& gridName, py::object source, py::object fogGrid, py::object reference,
+                       py::object primitiveIndexGrid, py::object attribute, py::object progress, bool returnStats)
 {
     TriangleMesh mesh = toMesh(vertices, faces, meshSource(source, rows(vertices), rows(faces)));
     MeshToSdfOptions o;
+    if (!attribute.is_none()) {
+        addAttributes(mesh, attribute);
+        for (const MeshAttribute& a : mesh.attributes) o.attributes.push_back(a.name);
+    }
+    if (!fogGrid.is_none()) o.fogGridName = fogGrid.cast<std::string>();
+    if (!primitiveIndexGrid.is_none()) o.primitiveIndexGridName = primitiveIndexGrid.cast<std::string>();
+    const bool extras = !fogGrid.is_none() || !primitiveIndexGrid.is_none() || !attribute.is_none();
+    if (!reference.is_none() && voxelSize)
+        throw InvalidArgumentError("reference and voxel_size cannot be combined: the reference gives the voxel size");
     if (voxelSize) {
         if (!(*voxelSize > 0.0) || !std::isfinite(*voxelSize)) {
             std::ostringstream os;
@@ -230,12 +374,32 @@ py::object meshToSdfPy(py::handle vertices, py::handle faces, std::optional<doub
     o.coverage = shellCoverageFromString(shellCoverage);
     o.conservative = conservative;
     applySignOptions(o, sign, fillInterior, windingAccuracy);
+    if (!reference.is_none()) {
+        // the CLI's --reference: its transform, and its band widths unless they were changed here
+        const std::string refPath = toPath(reference);
+        const ReferenceGrid r = runReleased([&] { return readReferenceGrid(refPath); });
+        o.transform = r.transform;
+        const double toUnits = o.units == WidthUnits::World ? r.voxelSize : 1.0;
+        if (exteriorBand == 3.0 && r.exteriorBandVoxels > 0.0) o.exteriorWidth = r.exteriorBandVoxels * toUnits;
+        if (interiorBand == 3.0 && r.interiorBandVoxels > 0.0) o.interiorWidth = r.interiorBandVoxels * toUnits;
+    }
     o.source = mesh.source;
     PyInterrupter interrupter(std::move(progress));
     o.interrupter = &interrupter;
     MeshToSdfStats stats;
-    openvdb::FloatGrid::Ptr grid = runReleased(interrupter, [&] { return meshToSdf(mesh, o, &stats); });
+    MeshToSdfGrids grids = runReleased(interrupter, [&] {
+        if (extras) return meshToSdfGrids(mesh, o, &stats);
+        MeshToSdfGrids g;
+        g.sdf = meshToSdf(mesh, o, &stats);
+        return g;
+    });
+    openvdb::FloatGrid::Ptr grid = grids.sdf;
     py::object result = py::cast(PyGrid{grid});
+    if (extras) {
+        py::dict all;
+        for (const openvdb::GridBase::Ptr& g : grids.all()) all[py::str(g->getName())] = extraGrid(g);
+        result = all;
+    }
     if (!returnStats) return result;
     py::dict d("voxel_size"_a = stats.voxelSize, "exterior_band_voxels"_a = stats.exteriorBandVoxels,
                "interior_band_voxels"_a = stats.interiorBandVoxels, "method"_a = stats.method,
@@ -665,12 +829,17 @@ std::string adfRepr(const PyAdf& a)
 void bindConvert(py::module_& m)
 {
     m.attr("HAVE_SIGN_MODES") = kHaveSignModes;
-    m.def("read_mesh", &readMeshPy, py::arg("path"), R"doc(
+    m.def("read_mesh", &readMeshPy, py::arg("path"), py::kw_only(), py::arg("attribute") = py::none(), R"doc(
 Reads a triangle mesh (OBJ, OFF, PLY, STL; polygons are triangulated), or builds a built-in one
 ("builtin:torus-knot", "builtin:sphere", "builtin:box"), as the CLI's mesh input does.
 
 Returns (vertices, faces): vertices float64 (N, 3), world units; faces int32 (M, 3), vertex
 indices, counter-clockwise seen from outside. The arrays view the library's buffers (no copy).
+attribute: also read per-vertex attributes, by name as the CLI's --attribute ("Cd,N" or a list:
+    "Cd" colour, "N" normal, "uv", or a PLY vertex property by its name); then returns
+    (vertices, faces, {name: float32 (M, 3, C)}), the values at each triangle corner (OBJ vt / vn
+    belong to face corners: seams are kept). A name the file does not have raises
+    InvalidArgumentError listing those it has.
 Raises IoError (missing or unreadable file, unknown extension) or InvalidMeshError (bad content;
 the message names the file, the element and the value).
 )doc");
@@ -695,6 +864,8 @@ vertices, components, the Euler characteristic, 'warnings' (the lines the CLI pr
           py::arg("exact_band") = 3.0, py::arg("method") = "chang", py::arg("shell") = "obb",
           py::arg("shell_coverage") = "complete", py::arg("conservative") = false, py::arg("sign") = "auto",
           py::arg("fill_interior") = false, py::arg("winding_accuracy") = 2.0, py::arg("max_voxels") = kCliMaxVoxels, py::arg("grid_name") = "surface", py::arg("source") = py::none(),
+          py::arg("fog_grid") = py::none(), py::arg("reference") = py::none(),
+          py::arg("primitive_index_grid") = py::none(), py::arg("attribute") = py::none(),
           py::arg("progress") = py::none(), py::arg("return_stats") = false, R"doc(
 Triangle mesh -> narrow-band signed distance level set: `levelforge mesh-to-sdf`
 (levelforge::meshToSdf) with the operator's parameters and defaults.
@@ -726,8 +897,21 @@ grid_name: the grid name (default "surface"). source: the levelforge:source meta
 progress: None or a callable progress(stage: str, percent: int), called from this thread as the
     work advances; an exception it raises stops the work and propagates.
 return_stats: also return a dict of what each stage did (the CLI's --report counters).
+fog_grid: also make a fog volume of this name (--fog-grid; Houdini's Build Fog).
+reference: a .vdb file whose first float grid gives the transform (--reference), and its band
+    widths unless exterior_band / interior_band differ from their default 3; not with voxel_size.
+primitive_index_grid: also make the closest input face of every active voxel, under this name
+    (--primitive-index-grid; needs method "chang", expansion "none", no fill_interior).
+attribute: {name: values}: transfer attributes to grids of the same names (--attribute; same
+    needs as primitive_index_grid): per-vertex (N,) / (N, C) or per-corner (M, 3, C) values,
+    C = 1 or 3, as read_mesh(path, attribute="Cd,N") returns them. Each active voxel gets the
+    barycentric interpolation at its exact closest point.
 
-Returns a Grid (the library's result, not copied), or (Grid, stats) with return_stats.
+Returns a Grid (the library's result, not copied), or (Grid, stats) with return_stats. With
+fog_grid, primitive_index_grid or attribute: a dict {grid name: grid} of every grid the CLI
+would write, in its order: float grids (the level set, the fog, 1-component attributes) as
+Grid, the primitive index as (coords int32 (K, 3), values int32 (K,)) and 3-component
+attributes as (coords, values float32 (K, 3)), coords in the level set's index space.
 The GIL is released while the library works; Ctrl-C raises KeyboardInterrupt promptly.
 Raises InvalidMeshError (no triangles, NaN, index out of range), InvalidArgumentError (bad
 options), ValueError (bad array shapes or dtypes), ResourceLimitError.

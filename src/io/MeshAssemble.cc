@@ -285,6 +285,48 @@ void assemble(const std::string& path, Importer& imp, Prescan& pre, TriangleMesh
     }
 }
 
+void attachAttributes(const std::string& path, const AttributeScan& scan, TriangleMesh& mesh)
+{
+    const size_t nT = mesh.triangles.size(), nV = mesh.points.size();
+    const size_t faces = scan.faceStart.empty() ? 0 : scan.faceStart.size() - 1;
+    for (const AttributeSource& src : scan.sources) {
+        const size_t C = size_t(src.components);
+        MeshAttribute attr;
+        attr.name = src.name;
+        attr.components = src.components;
+        attr.values.resize(nT * 3 * C);
+        const size_t entries = src.values.size() / C;
+        for (size_t t = 0; t < nT; ++t) {
+            const Vec3I& tri = mesh.triangles[t];
+            for (int k = 0; k < 3; ++k) {
+                size_t entry = tri[k];
+                if (src.perVertex) {
+                    if (entry >= nV || entry >= entries) {
+                        throwInvalid(path, 0, "attribute '" + src.name + "': no value for vertex " + std::to_string(entry));
+                    }
+                } else {
+                    // the corner of the triangle's face that names this vertex (a face names each
+                    // vertex once: repeated corners were removed when it was read)
+                    const size_t f = mesh.sourceFace(t);
+                    if (f >= faces) {
+                        throwInvalid(path, 0, "attribute '" + src.name + "': face " + std::to_string(f) +
+                            " was not found by the attribute scan");
+                    }
+                    size_t j = scan.faceStart[f];
+                    while (j < scan.faceStart[f + 1] && uint32_t(scan.cornerVertex[j]) != tri[k]) ++j;
+                    if (j == scan.faceStart[f + 1] || src.cornerIndex[j] < 0 || size_t(src.cornerIndex[j]) >= entries) {
+                        throwInvalid(path, 0, "attribute '" + src.name + "': face " + std::to_string(f) +
+                            " has no value for its vertex " + std::to_string(tri[k]));
+                    }
+                    entry = size_t(src.cornerIndex[j]);
+                }
+                std::copy_n(src.values.data() + entry * C, C, attr.values.data() + (3 * t + size_t(k)) * C);
+            }
+        }
+        mesh.attributes.push_back(std::move(attr));
+    }
+}
+
 } // namespace meshio_internal
 
 } // namespace levelforge

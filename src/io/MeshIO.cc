@@ -153,6 +153,52 @@ TriangleMesh readMeshUnguarded(const std::string& path, MeshReadInfo& info)
 
 } // namespace
 
+namespace {
+
+/// The attributes of @p want (duplicates once) from the file of @p mesh, spread over its corners.
+void readAttributes(const std::string& path, const std::vector<std::string>& want, TriangleMesh& mesh)
+{
+    using namespace meshio_internal;
+    std::vector<std::string> names;
+    for (const std::string& n : want)
+        if (std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
+    const std::string ext = lowerExtension(path);
+    AttributeScan scan;
+    if (ext == ".obj") scanObjAttributes(path, names, scan);
+    else if (ext == ".ply") scanPlyAttributes(path, names, scan);
+    else throwNoAttribute(path, names.front(), {});
+    attachAttributes(path, scan, mesh);
+}
+
+} // namespace
+
+std::vector<std::string> meshFileAttributes(const std::string& path)
+{
+    using namespace meshio_internal;
+    const std::string ext = lowerExtension(path);
+    if (!isReadableMeshFile(path)) {
+        throw IoError("cannot read mesh file '" + path + "': unsupported format '" + ext + "'");
+    }
+    AttributeScan scan;
+    if (ext == ".obj") scanObjAttributes(path, {}, scan);
+    else if (ext == ".ply") scanPlyAttributes(path, {}, scan);
+    return scan.available;
+}
+
+TriangleMesh readMesh(const std::string& path, const MeshReadOptions& options, MeshReadInfo& info)
+{
+    TriangleMesh mesh = readMesh(path, info);
+    if (options.attributes.empty()) return mesh;
+    try {
+        readAttributes(path, options.attributes, mesh);
+    } catch (const Error&) {
+        throw;
+    } catch (const std::bad_alloc&) {
+        throw ResourceLimitError(path + ": out of memory while reading the mesh's attributes");
+    }
+    return mesh;
+}
+
 TriangleMesh readMesh(const std::string& path, MeshReadInfo& info)
 {
     // The pre-scans check every count before anything is sized from it, but OpenMesh and the

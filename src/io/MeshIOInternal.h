@@ -246,6 +246,48 @@ void prescanPly(const std::string& path, Prescan& out);
 /// Pre-scans an STL file, ASCII or binary; @a ext is the lower-case extension (MeshScanStl.cc).
 void prescanStl(const std::string& path, const std::string& ext, Prescan& out);
 
+// ------------------------------------------------------------------------------- attributes
+
+/// One attribute as a file holds it, before it is spread over the triangles' corners.
+struct AttributeSource
+{
+    std::string name;
+    int components = 3;
+    /// true: `values` holds one entry per vertex (OBJ colours, PLY properties); false: `values` is
+    /// a table (OBJ `vt` / `vn` lines) and `cornerIndex` picks an entry for each face corner.
+    bool perVertex = true;
+    std::vector<float> values;         ///< entries * components
+    std::vector<int32_t> cornerIndex;  ///< !perVertex: per corner of AttributeScan, table entry or -1
+};
+
+/// What an attribute scan found: the names the file offers and the sources asked for. For OBJ,
+/// also the faces as OpenMesh hands them over (repeated corners removed keeping the first,
+/// faces with fewer than three distinct corners left out), so that their corners can be matched
+/// with the triangles made from them.
+struct AttributeScan
+{
+    std::vector<std::string> available;
+    std::vector<AttributeSource> sources;   ///< in the order asked for
+    std::vector<uint64_t> faceStart;        ///< OBJ: face f's corners are [faceStart[f], faceStart[f+1])
+    std::vector<int32_t> cornerVertex;      ///< OBJ: 0-based vertex of each corner
+};
+
+/// Scans an OBJ file for attributes (MeshScanObj.cc): the names it offers, and the sources of
+/// @a want (none: only the names). Throws InvalidArgumentError for a name it does not offer,
+/// InvalidMeshError for a corner or vertex that lacks a value.
+void scanObjAttributes(const std::string& path, const std::vector<std::string>& want, AttributeScan& out);
+
+/// As scanObjAttributes() for PLY (MeshScanPly.cc): vertex properties.
+void scanPlyAttributes(const std::string& path, const std::vector<std::string>& want, AttributeScan& out);
+
+/// "<path>: no vertex attribute 'X' (it has: Cd, N)" (MeshReader.cc).
+[[noreturn]] void throwNoAttribute(const std::string& path, const std::string& name,
+                                   const std::vector<std::string>& available);
+
+/// Spreads the sources of @a scan over the corners of @a mesh's triangles (MeshAssemble.cc),
+/// through mesh.faceIndex for OBJ's per-corner tables.
+void attachAttributes(const std::string& path, const AttributeScan& scan, TriangleMesh& mesh);
+
 /// PLY property types (MeshScanPly.cc), shared by the sequential and the parallel reader.
 enum class PlyType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64, Invalid };
 /// The type named by a PLY header word ("uchar", "float32", ...); Invalid for anything else.

@@ -32,6 +32,15 @@ std::string describeCoordinateProblem(NumberStatus st, std::string_view tok)
     return "bad coordinate " + message_internal::quotedExcerpt(tok);
 }
 
+[[noreturn]] void throwNoAttribute(const std::string& path, const std::string& name,
+                                   const std::vector<std::string>& available)
+{
+    std::string has;
+    for (const std::string& a : available) has += (has.empty() ? "" : ", ") + a;
+    throw InvalidArgumentError(path + ": no vertex attribute " + message_internal::quotedExcerpt(name) + " (" +
+                               (has.empty() ? std::string("it has none") : "it has: " + has) + ")");
+}
+
 uint64_t bytesAfter(const std::string& path, uint64_t offset)
 {
     std::error_code ec;

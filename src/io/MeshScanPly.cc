@@ -75,18 +75,19 @@ bool readPlyBinary(FileReader& r, PlyType t, bool swap, double& out)
     return true;
 }
 
-void prescanPly(const std::string& path, Prescan& out)
+/// Reads the header of a PLY file (the reader stops after 'end_header'); throws InvalidMeshError
+/// naming the line for anything OpenMesh would misread.
+void readPlyHeader(const std::string& path, FileReader& reader, PlyFormat& format, std::vector<PlyElement>& elements)
 {
-    FileReader reader(path);
     std::string_view line, rest, tok;
     if (!reader.nextLine(line)) throwInvalid(path, 0, "the file is empty");
     if (trimmed(line) != "ply") {
         throwInvalid(path, 1, "not a PLY file: the first line is " + message_internal::quotedExcerpt(trimmed(line)) +
             ", expected 'ply'");
     }
-    PlyFormat format = PlyFormat::Ascii;
+    format = PlyFormat::Ascii;
     bool haveFormat = false, ended = false;
-    std::vector<PlyElement> elements;
+    elements.clear();
     // OpenMesh parses the header token by token across lines and loops forever when a line has
     // a token too few or a non-number where it expects one: check every line exactly.
     std::string_view t[6];
@@ -158,6 +159,15 @@ void prescanPly(const std::string& path, Prescan& out)
     }
     if (!ended) throwInvalid(path, reader.lineNumber(), "the PLY header has no 'end_header'");
     if (!haveFormat) throwInvalid(path, 0, "the PLY header has no 'format' line");
+}
+
+void prescanPly(const std::string& path, Prescan& out)
+{
+    FileReader reader(path);
+    std::string_view tok;
+    PlyFormat format = PlyFormat::Ascii;
+    std::vector<PlyElement> elements;
+    readPlyHeader(path, reader, format, elements);
     out.binary = format != PlyFormat::Ascii;
     const bool swap = (format == PlyFormat::BinaryLE) == kHostBigEndian;
 
@@ -286,6 +296,126 @@ void prescanPly(const std::string& path, Prescan& out)
             out.haveFaces = true;
         }
         if (keepPoints) out.havePoints = true;
+    }
+}
+
+// Attributes: the vertex element's properties. Runs only when attributes are asked for (or
+// listed), after the mesh itself was read and checked.
+void scanPlyAttributes(const std::string& path, const std::vector<std::string>& want, AttributeScan& out)
+{
+    FileReader reader(path);
+    PlyFormat format = PlyFormat::Ascii;
+    std::vector<PlyElement> elements;
+    readPlyHeader(path, reader, format, elements);
+    const bool swap = (format == PlyFormat::BinaryLE) == kHostBigEndian;
+
+    // The names: Cd, N, uv from their properties, then every other scalar vertex property.
+    const PlyElement* vertex = nullptr;
+    size_t vertexElement = 0;
+    for (size_t i = 0; i < elements.size() && !vertex; ++i) {
+        if (elements[i].name == "vertex") { vertex = &elements[i]; vertexElement = i; }
+    }
+    struct Named { std::string name; int prop[3]; };
+    std::vector<Named> named;
+    if (vertex) {
+        const auto find = [&](const char* n) {
+            for (size_t i = 0; i < vertex->props.size(); ++i)
+                if (!vertex->props[i].isList && vertex->props[i].name == n) return int(i);
+            return -1;
+        };
+        std::vector<bool> used(vertex->props.size(), false);
+        for (const char* n : {"x", "y", "z"}) if (find(n) >= 0) used[size_t(find(n))] = true;
+        const auto group = [&](const char* name, std::initializer_list<std::initializer_list<const char*>> sets) {
+            for (const auto& set : sets) {
+                Named g{name, {-1, -1, -1}};
+                int k = 0;
+                bool all = true;
+                for (const char* n : set) { g.prop[k] = find(n); all = all && g.prop[k] >= 0; ++k; }
+                if (!all) continue;
+                for (int j = 0; j < k; ++j) used[size_t(g.prop[j])] = true;
+                named.push_back(g);
+                return;
+            }
+        };
+        group("Cd", {{"red", "green", "blue"}, {"r", "g", "b"}});
+        group("N", {{"nx", "ny", "nz"}});
+        group("uv", {{"u", "v"}, {"s", "t"}, {"texture_u", "texture_v"}, {"texture_s", "texture_t"}});
+        for (size_t i = 0; i < vertex->props.size(); ++i) {
+            if (used[i] || vertex->props[i].isList) continue;
+            named.push_back({vertex->props[i].name, {int(i), -1, -1}});
+        }
+    }
+    out.available.clear();
+    for (const Named& n : named) out.available.push_back(n.name);
+    std::vector<const Named*> asked;
+    for (const std::string& name : want) {
+        const Named* found = nullptr;
+        for (const Named& n : named) if (n.name == name) found = &n;
+        if (!found) throwNoAttribute(path, name, out.available);
+        asked.push_back(found);
+    }
+    out.sources.clear();
+    if (asked.empty()) return;
+    // Where each property's value goes: (source, component), or nowhere.
+    std::vector<std::vector<std::pair<int, int>>> dest(vertex->props.size());
+    for (size_t a = 0; a < asked.size(); ++a) {
+        AttributeSource src;
+        src.name = asked[a]->name;
+        src.components = asked[a]->prop[1] >= 0 ? 3 : 1;
+        src.values.assign(size_t(vertex->count) * size_t(src.components), 0.0f);
+        for (int k = 0; k < 3; ++k) {
+            if (asked[a]->prop[k] >= 0) dest[size_t(asked[a]->prop[k])].push_back({int(a), k});
+        }
+        out.sources.push_back(std::move(src));
+    }
+    // Colours of integer types are scaled to 0..1 by their type's maximum.
+    const auto scale = [](PlyType t) {
+        switch (t) {
+        case PlyType::UInt8: return 1.0 / 255.0;
+        case PlyType::Int8: return 1.0 / 127.0;
+        case PlyType::UInt16: return 1.0 / 65535.0;
+        case PlyType::Int16: return 1.0 / 32767.0;
+        case PlyType::UInt32: return 1.0 / 4294967295.0;
+        case PlyType::Int32: return 1.0 / 2147483647.0;
+        default: return 1.0;
+        }
+    };
+    TokenReader tokens(reader);
+    std::string_view tok;
+    const auto readValue = [&](PlyType t, const std::string& what, uint64_t n, double& value) {
+        if (format == PlyFormat::Ascii) {
+            if (!tokens.next(tok)) throwInvalid(path, tokens.line(), "the file ends inside " + what + " " + std::to_string(n));
+            if (parseCoordinate(tok, value) != NumberStatus::Ok) {
+                throwInvalid(path, tokens.line(), what + " " + std::to_string(n) + ": cannot parse the value " +
+                    message_internal::quotedExcerpt(tok));
+            }
+        } else if (!readPlyBinary(reader, t, swap, value)) {
+            throwInvalid(path, 0, "the file ends inside " + what + " " + std::to_string(n));
+        }
+    };
+    for (size_t e = 0; e <= vertexElement; ++e) {
+        const PlyElement& el = elements[e];
+        const bool isVertex = e == vertexElement;
+        for (uint64_t n = 0; n < el.count; ++n) {
+            for (size_t i = 0; i < el.props.size(); ++i) {
+                const PlyProperty& p = el.props[i];
+                double value = 0.0;
+                uint64_t items = 1;
+                if (p.isList) {
+                    readValue(p.countType, el.name, n, value);
+                    items = uint64_t(value);
+                }
+                for (uint64_t k = 0; k < items; ++k) {
+                    readValue(p.type, el.name, n, value);
+                    if (!isVertex || p.isList) continue;
+                    for (const auto& [a, c] : dest[i]) {
+                        AttributeSource& src = out.sources[size_t(a)];
+                        const double v = src.name == "Cd" ? value * scale(p.type) : value;
+                        src.values[size_t(n) * size_t(src.components) + size_t(c)] = float(v);
+                    }
+                }
+            }
+        }
     }
 }
 

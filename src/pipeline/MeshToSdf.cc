@@ -11,6 +11,7 @@
 #include <levelforge/core/Metadata.h>
 #include <levelforge/io/VdbIO.h>
 #include <levelforge/levelset/SdfToFog.h>
+#include <levelforge/mesh/AttributeTransfer.h>
 #include <levelforge/mesh/FastWindingNumber.h>
 
 #include <openvdb/tools/Prune.h>
@@ -137,6 +138,7 @@ bool meshInTransformFrame(const TriangleMesh& mesh, const openvdb::math::Transfo
     for (int k = 0; k < 3; ++k) a[k] /= h;
     out.source = mesh.source;
     out.faceIndex = mesh.faceIndex;
+    out.attributes = mesh.attributes;
     out.points.resize(mesh.points.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.points.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
@@ -145,8 +147,17 @@ bool meshInTransformFrame(const TriangleMesh& mesh, const openvdb::math::Transfo
         }
     });
     out.triangles = mesh.triangles;
-    if (a[0].cross(a[1]).dot(a[2]) < 0.0) // a reflection: keep "counter-clockwise seen from outside"
+    if (a[0].cross(a[1]).dot(a[2]) < 0.0) { // a reflection: keep "counter-clockwise seen from outside"
         for (Vec3I& tri : out.triangles) std::swap(tri[1], tri[2]);
+        for (MeshAttribute& attr : out.attributes) { // the corners' values follow their corners
+            const size_t C = size_t(attr.components);
+            if (attr.values.size() != out.triangles.size() * 3 * C) continue; // findMeshAttribute() reports it
+            for (size_t t = 0; t < out.triangles.size(); ++t)
+                std::swap_ranges(attr.values.begin() + std::ptrdiff_t((3 * t + 1) * C),
+                                 attr.values.begin() + std::ptrdiff_t((3 * t + 2) * C),
+                                 attr.values.begin() + std::ptrdiff_t((3 * t + 2) * C));
+        }
+    }
     return true;
 }
 
@@ -165,6 +176,28 @@ MeshToSdfGrids run(const TriangleMesh& inputMesh, const MeshToSdfOptions& o, Mes
     if (wantFog && wantPrimitive && o.fogGridName == o.primitiveIndexGridName)
         throw InvalidArgumentError("the fog grid and the primitive index grid have the same name '" + o.fogGridName +
                                    "': grid names must be distinct");
+    const bool wantAttributes = extras && !o.attributes.empty();
+    if (wantAttributes) {
+        std::vector<std::string> names = {o.gridName};
+        if (wantFog) names.push_back(o.fogGridName);
+        if (wantPrimitive) names.push_back(o.primitiveIndexGridName);
+        for (const std::string& a : o.attributes) {
+            findMeshAttribute(inputMesh, a); // InvalidArgumentError listing what the mesh has
+            if (std::find(names.begin(), names.end(), a) != names.end())
+                throw InvalidArgumentError("the attribute grid '" + a + "' has the name of another grid (or is asked "
+                                           "for twice): grid names must be distinct");
+            names.push_back(a);
+        }
+        if (o.method == BandMethod::Scan)
+            throw InvalidArgumentError("attribute transfer needs the chang band method (the scan method keeps no "
+                                       "closest triangle)");
+        if (o.expansion != Expansion::None)
+            throw InvalidArgumentError("attribute transfer needs --expansion none: only the exact band knows each "
+                                       "voxel's closest point (an expansion's new voxels do not)");
+        if (o.fillInterior)
+            throw InvalidArgumentError("attribute transfer cannot be combined with fill interior: the filled voxels "
+                                       "deeper than the band have no closest point");
+    }
     if (wantPrimitive) {
         if (o.method == BandMethod::Scan)
             throw InvalidArgumentError("a primitive index grid needs the chang band method (the scan method keeps no "
@@ -271,7 +304,7 @@ MeshToSdfGrids run(const TriangleMesh& inputMesh, const MeshToSdfOptions& o, Mes
         mo.validation = report;
         mo.windingAccuracy = o.windingAccuracy;
         mo.fillInterior = o.fillInterior && !expand; // after an expansion: below
-        if (vector || wantPrimitive) {
+        if (vector || wantPrimitive || wantAttributes) {
             LevelSetWithClosestPoints r = meshToLevelSetWithClosestPoints(mesh, mo, &stats.band);
             grid = r.levelSet;
             closest = r.closestPoints;
@@ -353,23 +386,41 @@ MeshToSdfGrids run(const TriangleMesh& inputMesh, const MeshToSdfOptions& o, Mes
         out.fog->insertMeta(meta::kSource, openvdb::StringMetadata(o.source.empty() ? mesh.source : o.source));
         out.fog->insertMeta(meta::kGenerator, openvdb::StringMetadata(generatorString()));
     }
-    if (wantPrimitive) {
-        // The exact band's closest triangles, renumbered as input faces; the level set's active
-        // topology (voxels the band computed but left inactive are dropped).
-        openvdb::Int32Grid::Ptr prim = closestTriangles; // ours: renumbered in place
+    if (wantPrimitive || wantAttributes) {
+        // The exact band's closest triangles on the level set's active topology (voxels the
+        // band computed but left inactive are dropped).
         const openvdb::FloatTree& sdfTree = grid->tree();
-        openvdb::tree::LeafManager<openvdb::Int32Tree> leaves(prim->tree());
+        openvdb::tree::LeafManager<openvdb::Int32Tree> leaves(closestTriangles->tree());
         leaves.foreach([&](openvdb::Int32Tree::LeafNodeType& leaf, size_t) {
             const openvdb::FloatTree::LeafNodeType* s = sdfTree.probeConstLeaf(leaf.origin());
             for (openvdb::Index i = 0; i < openvdb::Int32Tree::LeafNodeType::SIZE; ++i) {
                 const int32_t tri = leaf.getValue(i);
-                if (s && s->isValueOn(i) && leaf.isValueOn(i) && tri >= 0 && size_t(tri) < mesh.triangles.size())
-                    leaf.setValueOn(i, int32_t(mesh.sourceFace(size_t(tri))));
-                else
+                if (!(s && s->isValueOn(i) && leaf.isValueOn(i) && tri >= 0 && size_t(tri) < mesh.triangles.size()))
                     leaf.setValueOff(i, -1);
             }
         });
-        openvdb::tools::pruneInactive(prim->tree());
+        openvdb::tools::pruneInactive(closestTriangles->tree());
+    }
+    if (wantAttributes) {
+        // Before the primitive index renumbers the triangles in place; in the mesh's frame (the
+        // closest-triangle grid's transform), then given the level set's transform.
+        for (const std::string& a : o.attributes) {
+            AttributeTransferOptions ao;
+            ao.interrupter = o.interrupter;
+            openvdb::GridBase::Ptr g = transferAttribute(mesh, a, *closestTriangles, ao);
+            g->setTransform(grid->transform().copy());
+            g->insertMeta(meta::kSource, openvdb::StringMetadata(o.source.empty() ? mesh.source : o.source));
+            g->insertMeta(meta::kGenerator, openvdb::StringMetadata(generatorString()));
+            out.attributes.push_back(g);
+        }
+    }
+    if (wantPrimitive) {
+        // The closest triangles, renumbered as input faces.
+        openvdb::Int32Grid::Ptr prim = closestTriangles; // ours: renumbered in place
+        openvdb::tree::LeafManager<openvdb::Int32Tree> leaves(prim->tree());
+        leaves.foreach([&](openvdb::Int32Tree::LeafNodeType& leaf, size_t) {
+            for (auto it = leaf.beginValueOn(); it; ++it) it.setValue(int32_t(mesh.sourceFace(size_t(*it))));
+        });
         prim->setTransform(grid->transform().copy());
         prim->setName(o.primitiveIndexGridName);
         prim->setGridClass(openvdb::GRID_UNKNOWN);

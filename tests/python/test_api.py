@@ -144,9 +144,7 @@ def test_docstrings_and_help():
 
 OPERATORS = {
     # operator: (function, CLI parameters that are not keyword arguments (and why), renamed)
-    # fog-grid, reference, primitive-index-grid (issue 16, items 3-5): not bound yet (the extra
-    # grids need a multi-grid return and an Int32 grid type in Python)
-    "mesh-to-sdf": ("mesh_to_sdf", {"quiet", "report", "fog-grid", "reference", "primitive-index-grid"}, {}),
+    "mesh-to-sdf": ("mesh_to_sdf", {"quiet", "report"}, {}),
     "expand": ("expand", {"quiet", "grid-name"}, {}),  # grid-name picks the grid in a file
     "reshape": ("reshape", {"quiet", "grid-name"}, {}),  # grid-name picks the grid in a file
     "volume-to-sdf": ("volume_to_sdf", {"quiet", "vdb-grid", "raw-dims", "raw-type", "raw-spacing",

@@ -20,6 +20,19 @@ using Vec3d = openvdb::math::Vec3<double>;
 using Vec3I = openvdb::math::Vec3<uint32_t>;
 using BBoxd = openvdb::math::BBox<Vec3d>;
 
+/// @brief One attribute of a mesh's surface (a colour, a normal, a texture coordinate), stored
+///        per triangle corner, so that seams (a vertex with a different UV or normal in each
+///        face that uses it) stay exact. Read from OBJ / PLY files on request (MeshReadOptions in
+///        io/MeshIO.h) and transferred to grids by mesh/AttributeTransfer.h.
+struct MeshAttribute
+{
+    std::string name;          ///< Houdini's name: "Cd" (colour), "N" (normal), "uv", or a PLY property
+    int components = 3;        ///< values per corner: 1 (float) or 3 (vector)
+    /// triangleCount() * 3 * components values: component c of corner k (0, 1, 2 as in
+    /// TriangleMesh::triangles[t]) of triangle t is values[(3 * t + k) * components + c].
+    std::vector<float> values;
+};
+
 /// @brief Vertex positions (world units) and triangles indexing them.
 struct TriangleMesh
 {
@@ -31,6 +44,11 @@ struct TriangleMesh
     /// was dropped). Empty: triangle i is face i. When not empty it has one entry per triangle,
     /// and every function that reorders or filters triangles keeps it in step (see sourceFace()).
     std::vector<uint32_t> faceIndex;
+    /// Optional: per-corner attributes (see MeshAttribute), empty unless asked for when reading.
+    /// Each one has triangleCount() * 3 * components values, in step with triangles (functions
+    /// that reorder or filter triangles and keep faceIndex in step do not keep these: transfer
+    /// attributes from the mesh as it was read).
+    std::vector<MeshAttribute> attributes;
 
     size_t vertexCount() const { return points.size(); }
     size_t triangleCount() const { return triangles.size(); }

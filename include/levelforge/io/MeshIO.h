@@ -82,6 +82,42 @@ struct MeshReadInfo
     bool doublePrecision = false;  ///< positions recovered in double precision from the file
 };
 
+/// What readMesh() keeps beyond positions and faces. Nothing by default: reading then costs
+/// exactly what it costs without options.
+///
+/// Attributes (TriangleMesh::attributes, one value per triangle corner, see MeshAttribute) are
+/// named as Houdini names them:
+///  - "Cd", the colour (3 floats): OBJ `v x y z r g b` (as written, usually 0..1); PLY vertex
+///    properties red, green, blue (integer types divided by their maximum, 255 for uchar; float
+///    types as written);
+///  - "N", the normal (3 floats, as written, not renormalised): OBJ `vn` lines referenced by
+///    face corners `v//vn` or `v/vt/vn`; PLY vertex properties nx, ny, nz;
+///  - "uv", the texture coordinate (3 floats, w = 0 unless the file gives it): OBJ `vt` lines
+///    referenced by face corners `v/vt` or `v/vt/vn`; PLY vertex properties u, v (or s, t, or
+///    texture_u, texture_v);
+///  - PLY only: any other scalar vertex property (not x, y, z), by its own name (1 float; e.g.
+///    "quality", "alpha").
+/// OBJ `vt` / `vn` indices belong to face corners, so a vertex can have a different UV or
+/// normal in each face that uses it (a seam); they are kept per corner and stay right across
+/// seams. Per-vertex values (colours, PLY properties) are copied to every corner of the vertex.
+/// Polygons keep the value of each of their corners in the triangles they are split into;
+/// dropped faces take theirs with them. Only OBJ and PLY files carry attributes (OFF and STL
+/// have none here).
+struct MeshReadOptions
+{
+    /// The attributes to keep, by name. A name the file does not have throws
+    /// InvalidArgumentError "<file>: no vertex attribute 'X' (it has: Cd, N)"; an OBJ face corner
+    /// without the `vt` / `vn` index the attribute needs, or an OBJ vertex without a colour,
+    /// throws InvalidMeshError naming the face or vertex.
+    std::vector<std::string> attributes;
+};
+
+/// @brief The attribute names a mesh file offers (see MeshReadOptions), in the order Cd, N, uv,
+///        then PLY properties in file order; empty for OFF and STL. Reads the header (PLY) or
+///        scans the file (OBJ); does not check the rest of the file.
+/// @throws IoError when the file cannot be opened or has an unsupported extension.
+std::vector<std::string> meshFileAttributes(const std::string& path);
+
 /// @brief Reads a triangle mesh (.obj, .off, .ply, .stl, also .stla/.stlb; case-insensitive),
 ///        with the guarantees of the file comment.
 /// @param[in] path  the mesh file; the extension chooses the format
@@ -100,6 +136,15 @@ TriangleMesh readMesh(const std::string& path);
 /// @return the mesh, with mesh.source set to @p path.
 /// @throws IoError, InvalidMeshError, ResourceLimitError as readMesh(path).
 TriangleMesh readMesh(const std::string& path, MeshReadInfo& info);
+
+/// @brief As readMesh(path, info), and keeps what @p options asks for (per-corner attributes).
+/// @param[in]  path     the mesh file
+/// @param[in]  options  the attributes to keep (see MeshReadOptions)
+/// @param[out] info     as readMesh(path, info)
+/// @return the mesh, with mesh.attributes in the order of options.attributes.
+/// @throws IoError, InvalidMeshError, ResourceLimitError as readMesh(path); InvalidArgumentError
+///         for an attribute the file does not have (the message lists those it has).
+TriangleMesh readMesh(const std::string& path, const MeshReadOptions& options, MeshReadInfo& info);
 
 /// @brief Writes @p mesh to @p path atomically; the format follows the extension (.obj, .off,
 ///        .ply, .stl; case-insensitive), see the file comment.

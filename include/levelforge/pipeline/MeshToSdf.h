@@ -45,6 +45,12 @@
 ///        otherwise: fast sweeping carries no triangle, the vector expansion's triangle is an
 ///        upper bound that is not always the closest, the scan method keeps no triangle, and
 ///        filled voxels deeper than the band were never searched).
+///      - attribute grids (MeshToSdfOptions::attributes; Houdini's attribute transfer): for each
+///        named per-corner attribute of the mesh (TriangleMesh::attributes, read with
+///        MeshReadOptions), a grid of that name (FloatGrid for 1 component, Vec3SGrid for 3:
+///        "Cd", "N", "uv") with the level set's transform and active voxels, holding the
+///        barycentric interpolation of the attribute at the exact closest point of the closest
+///        triangle (mesh/AttributeTransfer.h). Same requirements as the primitive index grid.
 ///
 /// The grid's transform: by default a linear transform of the resolved voxel size (voxel ijk
 /// centred at world ijk × voxelSize). MeshToSdfOptions::transform replaces it (and voxelSize /
@@ -70,6 +76,7 @@
 #include <openvdb/math/Transform.h>
 
 #include <string>
+#include <vector>
 
 namespace levelforge {
 
@@ -134,6 +141,11 @@ struct MeshToSdfOptions : GridSpec
     /// file comment, step 6); empty (default): none. Needs BandMethod::Chang, Expansion::None
     /// and no fillInterior.
     std::string primitiveIndexGridName;
+    /// meshToSdfGrids() only: attributes of the mesh (TriangleMesh::attributes, by name: "Cd",
+    /// "N", "uv", ...) to transfer to grids of the same names (see the file comment, step 6);
+    /// empty (default): none. Needs BandMethod::Chang, Expansion::None and no fillInterior; a
+    /// name the mesh does not have throws InvalidArgumentError listing those it has.
+    std::vector<std::string> attributes;
 };
 
 /// The grids meshToSdfGrids() makes (the optional ones are null unless asked for).
@@ -142,6 +154,8 @@ struct MeshToSdfGrids
     openvdb::FloatGrid::Ptr sdf;            ///< the level set, named gridName (as meshToSdf())
     openvdb::FloatGrid::Ptr fog;            ///< fogGridName: the fog volume (GRID_FOG_VOLUME)
     openvdb::Int32Grid::Ptr primitiveIndex; ///< primitiveIndexGridName: closest input face, background -1
+    /// attributes: one grid per attribute, in the order asked for (FloatGrid or Vec3SGrid)
+    openvdb::GridPtrVec attributes;
 
     /// The grids that exist, in the order above (for writeGridsAtomic()).
     openvdb::GridPtrVec all() const
@@ -150,6 +164,7 @@ struct MeshToSdfGrids
         if (sdf) v.push_back(sdf);
         if (fog) v.push_back(fog);
         if (primitiveIndex) v.push_back(primitiveIndex);
+        for (const openvdb::GridBase::Ptr& a : attributes) v.push_back(a);
         return v;
     }
 };
@@ -225,8 +240,9 @@ openvdb::FloatGrid::Ptr meshToSdf(const TriangleMesh& mesh, const MeshToSdfOptio
 /// @param[out] stats    optional: what each stage did
 /// @return the level set (identical to meshToSdf()'s) and the grids asked for
 /// @throws as meshToSdf(), and InvalidArgumentError when two grid names are equal, for a fog with
-///         SignMode::Unsigned, or for a primitive index with BandMethod::Scan, an expansion or
-///         fillInterior
+///         SignMode::Unsigned, for a primitive index or attributes with BandMethod::Scan, an
+///         expansion or fillInterior, or for an attribute the mesh does not have (before any
+///         work; the message lists the attributes it has)
 MeshToSdfGrids meshToSdfGrids(const TriangleMesh& mesh, const MeshToSdfOptions& options = {},
                               MeshToSdfStats* stats = nullptr);
 
