@@ -490,8 +490,8 @@ void signTree(FloatTree& tree, const openvdb::math::Transform& xform, const Fast
         Scratch& sc = tls.local();
         const BBoxd ib = xform.worldToIndex(meshBounds);
         const Coord lo = Coord::floor(ib.min()) - Coord(1), hi = Coord::ceil(ib.max()) + Coord(1);
-        const int D = int(Node2::DIM);
-        auto key = [D](int v) { return int(std::floor(double(v) / D)) * D; };
+        constexpr int D = int(Node2::DIM);
+        const auto key = [](int v) { return int(std::floor(double(v) / D)) * D; };
         for (int x = key(lo.x()); x <= hi.x(); x += D)
             for (int y = key(lo.y()); y <= hi.y(); y += D)
                 for (int z = key(lo.z()); z <= hi.z(); z += D) {
