@@ -342,6 +342,9 @@ void OperatorSpec::checkDeclaration() const
         if (p.type == ParamType::Enum && p.choices.empty()) {
             bad("enum parameter '" + p.name + "' has no choices");
         }
+        if (p.repeatable && p.type != ParamType::String) {
+            bad("parameter '" + p.name + "' is repeatable but not a string");
+        }
         if (p.defaultText) {
             try {
                 parseParamValue(p, *p.defaultText);
@@ -412,6 +415,7 @@ std::string OperatorSpec::helpText(const std::string& program) const
         if (p.type != ParamType::Bool && p.defaultText && !p.defaultText->empty()) notes.push_back("default " + *p.defaultText);
         if (!p.rangeText().empty()) notes.push_back("range " + p.rangeText());
         for (const std::string& other : p.excludes) notes.push_back("not with --" + other);
+        if (p.repeatable) notes.push_back("repeatable");
         if (!notes.empty()) {
             right += " [";
             for (size_t i = 0; i < notes.size(); ++i) right += (i ? "; " : "") + notes[i];

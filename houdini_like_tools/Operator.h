@@ -77,6 +77,7 @@ struct Param
     Bound minBound = Bound::Inclusive, maxBound = Bound::Inclusive;
     std::vector<std::string> choices; ///< allowed values of an Enum
     std::vector<std::string> excludes;///< parameters that may not be given together with this one
+    bool repeatable = false;          ///< String only: may be given more than once; the values are joined with commas
 
     static Param integer(std::string name, std::string label, std::string help);
     static Param floating(std::string name, std::string label, std::string help);
@@ -97,6 +98,9 @@ struct Param
     Param& below(double hi) { max = hi; maxBound = Bound::Exclusive; return *this; }   ///< < hi
     Param& atMost(double hi) { max = hi; maxBound = Bound::Inclusive; return *this; }  ///< <= hi
     Param& exclusiveWith(std::string otherName);
+    /// A String parameter that may be given more than once (`--attribute Cd --attribute N`):
+    /// the operator sees the values joined with commas ("Cd,N"), as if given once that way.
+    Param& repeat() { repeatable = true; return *this; }
 
     /// "--name".
     std::string option() const { return "--" + name; }

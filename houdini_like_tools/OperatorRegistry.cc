@@ -42,6 +42,7 @@ struct Collected
 {
     std::map<std::string, std::string> ports;
     std::map<std::string, std::string> texts;
+    std::map<std::string, std::vector<std::string>> lists; // repeatable parameters
     std::map<std::string, int64_t> flags;
     std::map<std::string, CLI::Option*> options;
 };
@@ -158,6 +159,11 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
             for (const Param& p : spec->params()) {
                 if (p.type == ParamType::Bool) {
                     c.options[p.name] = sub->add_flag(p.option(), c.flags[p.name], p.help);
+                } else if (p.repeatable) {
+                    c.options[p.name] = sub->add_option(p.option(), c.lists[p.name], p.help)
+                                            ->type_name(p.metavar())
+                                            ->expected(1)
+                                            ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
                 } else {
                     c.options[p.name] = sub->add_option(p.option(), c.texts[p.name], p.help)
                                             ->type_name(p.metavar());
@@ -205,6 +211,10 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
                 if (c.options.at(p.name)->count() == 0) continue;
                 if (p.type == ParamType::Bool) {
                     opArgs.setFlag(p.name, c.flags.at(p.name) > 0);
+                } else if (p.repeatable) {
+                    std::string joined;
+                    for (const std::string& v : c.lists.at(p.name)) joined += (joined.empty() ? "" : ",") + v;
+                    opArgs.set(p.name, joined);
                 } else {
                     opArgs.set(p.name, c.texts.at(p.name));
                 }

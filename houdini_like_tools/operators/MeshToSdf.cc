@@ -299,13 +299,14 @@ LEVELFORGE_REGISTER_OPERATOR(
                              "in file order); background -1. Needs --method chang, --expansion none and no "
                              "--fill-interior"))
         .param(Param::string("attribute", "Attributes",
-                             "Also write the mesh's per-vertex attributes, comma-separated (Cd,N,uv), each "
+                             "Also write the mesh's per-vertex attributes (repeat the option, or comma-separate: Cd,N,uv), each "
                              "to a grid of the same name: a vector grid (vec3s) for Cd (colour: OBJ 'v x y z r "
                              "g b', PLY red/green/blue), N (normal: OBJ vn, PLY nx/ny/nz) and uv (OBJ vt, PLY "
                              "u/v or s/t; w = 0), a float grid for any other PLY vertex property by its name. "
                              "Each active voxel holds the barycentric interpolation of the corner values at "
                              "its exact closest point on the surface (OBJ vt/vn per face corner: seams are "
-                             "kept). Needs --method chang, --expansion none and no --fill-interior"))
+                             "kept). Needs --method chang, --expansion none and no --fill-interior")
+                    .repeat())
         .param(Param::flag("quiet", "Quiet", "Print no progress on stderr"))
         .param(Param::flag("report", "Report",
                            "Print the mesh validation summary and conversion statistics"))

@@ -56,6 +56,14 @@ TEST(CliAttributes, ColourAndUvGridsInTheOutput)
     const fs::path dir = scratchDir("cli_attributes");
     const std::string mesh = writeColourBox(dir);
     const std::string out = (dir / "box.vdb").string();
+    // repeated and comma-separated are the same
+    const std::string repeated = (dir / "box_repeated.vdb").string();
+    const CliRun rr = levelforge_test::runLevelforge(dir, {"mesh-to-sdf", mesh, repeated, "--voxel-size", "0.05", "--quiet",
+                                                           "--attribute", "Cd", "--attribute", "uv"});
+    ASSERT_EQ(rr.code, 0) << rr.command << "\n" << rr.err;
+    EXPECT_NE(rr.out.find("attribute grid 'Cd' (vec3s)"), std::string::npos) << rr.out;
+    EXPECT_NE(rr.out.find("attribute grid 'uv' (vec3s)"), std::string::npos) << rr.out;
+    EXPECT_EQ(levelforge::readGrids(repeated)->size(), 3u);
     const CliRun r = levelforge_test::runLevelforge(dir, {"mesh-to-sdf", mesh, out, "--voxel-size", "0.05", "--quiet",
                                                           "--attribute", "Cd,uv", "--primitive-index-grid", "prim"});
     ASSERT_EQ(r.code, 0) << r.command << "\n" << r.err;
