@@ -51,7 +51,14 @@ void printStats(std::ostream& os, const MeshToLevelSetStats& s)
        << withThousands(s.nodeTests) << " boxes\n"
        << "  seconds: hierarchy " << fmt("%.3f", s.secondsHierarchy) << ", candidates "
        << fmt("%.3f", s.secondsCandidates) << ", distance " << fmt("%.3f", s.secondsDistance)
-       << ", finish " << fmt("%.3f", s.secondsFinish) << "\n";
+       << ", finish " << fmt("%.3f", s.secondsFinish) << "\n"
+       << "  device:                  " << s.device << (s.deviceNote.empty() ? "" : " (" + s.deviceNote + ")") << "\n";
+    if (s.deviceBatches)
+        os << "  device work:             " << withThousands(s.deviceBatches) << " batches, "
+           << withThousands(s.devicePairs) << " voxel-triangle pairs; up " << fmt("%.1f", double(s.deviceBytesUp) / 1048576.0)
+           << " MiB, down " << fmt("%.1f", double(s.deviceBytesDown) / 1048576.0) << " MiB, peak device memory "
+           << fmt("%.1f", double(s.devicePeakBytes) / 1048576.0) << " MiB; seconds: waiting "
+           << fmt("%.3f", s.secondsDeviceWait) << ", staging copies " << fmt("%.3f", s.secondsDeviceCopy) << "\n";
 }
 
 void printScanStats(std::ostream& os, const TetScanStats& s)
@@ -143,6 +150,7 @@ void cookMeshToSdf(OperatorArgs& args)
     options.sign = signModeFromString(args.getString("sign"));
     options.fillInterior = args.getBool("fill-interior");
     options.windingAccuracy = args.getFloat("winding-accuracy");
+    options.device = parseComputeDevice(args.getString("device"));
     options.validation = &validation;
     const bool pseudonormalOnOpen = !validation.closed() &&
         (options.sign == SignMode::Pseudonormal ||
@@ -196,6 +204,8 @@ void cookMeshToSdf(OperatorArgs& args)
         << (options.fillInterior ? ", interior filled" : "") << "\n"
         << "  time: " << fmt("%.2f", convertSeconds) << " s conversion, "
         << fmt("%.2f", totalSeconds) << " s total\n";
+    if (!stats.band.deviceNote.empty() && args.isSet("device"))
+        err << "levelforge: warning: " << stats.band.deviceNote << "\n";
     if (report && options.method == BandMethod::Chang) printStats(out, stats.band);
     if (report && stats.sign == SignMode::Winding && options.method == BandMethod::Chang) {
         const MeshToLevelSetStats& b = stats.band;
@@ -270,6 +280,13 @@ LEVELFORGE_REGISTER_OPERATOR(
                              "unsigned: the unsigned distance of any surface (grid class unknown, not a "
                              "level set; band = --exterior-band)",
                              {"auto", "pseudonormal", "winding", "unsigned"})
+                   .defaultValue("auto"))
+        .param(Param::choice("device", "Compute Device",
+                             "Where --method chang's per-voxel search runs: cpu; vulkan (a Vulkan device "
+                             "with 64-bit floats, see 'levelforge devices'; an error when there is none); "
+                             "auto: a discrete GPU when the band is large, else the CPU. The grids are "
+                             "bit-identical on every device",
+                             {"auto", "cpu", "vulkan"})
                    .defaultValue("auto"))
         .param(Param::flag("fill-interior", "Fill Interior",
                            "Every voxel inside the surface is active and negative: exact distances in "

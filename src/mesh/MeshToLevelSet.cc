@@ -66,7 +66,8 @@ inline void evaluate(const Context& ctx, VoxelSearch& v, uint32_t t, Scratch& s)
     const Vec3I& tri = ctx.mesh.triangles[t];
     ++s.evaluations;
     const TriangleClosestPoint cp = closestPointOnTriangle(v.p, ctx.cellPts[tri[0]], ctx.cellPts[tri[1]], ctx.cellPts[tri[2]]);
-    if (cp.distanceSqr < v.best2) {
+    // ties go to the smaller triangle index (as on a Vulkan device), whatever the search order
+    if (cp.distanceSqr < v.best2 || (cp.distanceSqr == v.best2 && v.bestT != kNone && t < v.bestT)) {
         v.best2 = cp.distanceSqr;
         v.bestT = t;
         v.bestCp = cp;
@@ -695,7 +696,21 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     poller.leaves = std::max<size_t>(cand.size(), 1);
     std::atomic<int64_t> nextPoll{0};
     const int64_t pollEvery = 20'000'000; // ns
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, cand.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+    bool onDevice = useDevice(options, cand.size(), stats.deviceNote);
+    if (onDevice) {
+        try {
+            deviceDistances(ctx, options, cand, outLeaves, wantClosest, scratchTls, stats);
+        } catch (const DeviceError& e) {
+            if (options.device != ComputeDevice::Auto) throw;
+            stats.deviceNote = std::string("device auto: ") + e.what() + "; the CPU was used";
+            stats.device = "cpu";
+            onDevice = false;
+            outLeaves.clear();
+            outLeaves.resize(cand.size());
+            scratchTls.clear();
+        }
+    }
+    if (!onDevice) tbb::parallel_for(tbb::blocked_range<size_t>(0, cand.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
         Scratch& s = scratchTls.local();
         if (interrupter) s.poller = &poller;
         for (size_t i = r.begin(); i != r.end(); ++i) {

@@ -13,6 +13,8 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
 
+#include <tbb/enumerable_thread_specific.h>
+
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -162,6 +164,16 @@ LeafResult finishLeaf(const Context& ctx, Scratch& s, LeafResult& res, bool want
 /// The deferred winding signs of every leaf (Winding without boundary current).
 void resolveDeferred(const Context& ctx, const std::vector<Coord>& origins, std::vector<LeafResult>& leaves,
                      bool wantClosest, uint64_t& evaluations, uint64_t& activeVoxels);
+
+/// Whether the distance stage runs on a Vulkan device (MeshToLevelSetOptions::device); for
+/// Auto, why not in `note` (MeshToLevelSetDevice.cc).
+bool useDevice(const MeshToLevelSetOptions& options, size_t candidateLeaves, std::string& note);
+
+/// The distance stage on the Vulkan device: fills `out` (one entry per candidate leaf) exactly as
+/// computeLeaf() would. Throws DeviceError, InterruptedError.
+void deviceDistances(const Context& ctx, const MeshToLevelSetOptions& options, const std::vector<Coord>& cand,
+                     std::vector<LeafResult>& out, bool wantClosest, tbb::enumerable_thread_specific<Scratch>& scratch,
+                     MeshToLevelSetStats& stats);
 
 /// The sign mode a conversion uses, and why (Auto: validateMesh()'s verdict).
 SignMode resolveSignMode(const TriangleMesh& mesh, const MeshToLevelSetOptions& options, std::string& reason);

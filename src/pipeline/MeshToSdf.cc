@@ -303,6 +303,8 @@ MeshToSdfGrids run(const TriangleMesh& inputMesh, const MeshToSdfOptions& o, Mes
         mo.sign = sign;
         mo.validation = report;
         mo.windingAccuracy = o.windingAccuracy;
+        mo.device = o.device;
+        mo.deviceMemoryBudget = o.deviceMemoryBudget;
         mo.fillInterior = o.fillInterior && !expand; // after an expansion: below
         if (vector || wantPrimitive || wantAttributes) {
             LevelSetWithClosestPoints r = meshToLevelSetWithClosestPoints(mesh, mo, &stats.band);

@@ -59,6 +59,7 @@
 
 #include <levelforge/core/GridSpec.h>
 #include <levelforge/core/TriangleMesh.h>
+#include <levelforge/gpu/VulkanDevices.h>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
@@ -111,6 +112,21 @@ struct MeshToLevelSetOptions : GridSpec
     double windingAccuracy = 2.0;
     /// Auto: an existing validateMesh() report of this mesh (not owned); null: validate here.
     const MeshReport* validation = nullptr;
+
+    /// @name Compute device (gpu/VulkanDevices.h)
+    /// Where the per-voxel search of the band leaves runs. Vulkan: the device finds each voxel's
+    /// closest candidate triangle (a leaf's candidates: every triangle of a hierarchy cluster
+    /// within the band limit of the leaf) in double precision, term for term as the CPU; the
+    /// CPU then evaluates that one triangle again for the closest point, the sign and the band
+    /// test, so the grid is bit-identical to the CPU path's (the closest-triangle index may
+    /// differ where two triangles are exactly as close). Needs a device with shaderFloat64.
+    /// Auto: Vulkan on a discrete GPU when the band has at least deviceMinLeaves candidate
+    /// leaves, else the CPU; a device error then falls back to the CPU (stats say why).
+    /// @{
+    ComputeDevice device = ComputeDevice::Auto;
+    uint64_t deviceMemoryBudget = 0;  ///< bytes per batch slot on the device; 0: automatic
+    uint64_t deviceMinLeaves = 8192;  ///< Auto: smaller bands stay on the CPU
+    /// @}
 };
 
 /// @brief Counters of meshToLevelSet(): the hierarchy, the candidate leaves and the search.
@@ -154,6 +170,17 @@ struct MeshToLevelSetStats
     uint64_t triangleListEntries = 0;
     uint64_t localCells = 0;
     double secondsVoxelize = 0, secondsLists = 0;
+    /// @}
+
+    /// @name Compute device
+    /// @{
+    std::string device = "cpu";           ///< "cpu", or "vulkan: <device name> (<type>)"
+    std::string deviceNote;               ///< Auto on the CPU, or a fallback: why
+    uint64_t deviceBatches = 0;           ///< batches of leaves dispatched
+    uint64_t devicePairs = 0;             ///< voxel–triangle distances computed on the device
+    uint64_t deviceBytesUp = 0, deviceBytesDown = 0, devicePeakBytes = 0; ///< transfers, device memory
+    double secondsDeviceWait = 0;         ///< the CPU waiting for the device
+    double secondsDeviceCopy = 0;         ///< copies into and out of staging memory
     /// @}
 
     /// @brief Exact distance evaluations per output voxel (the cost of the culled search).

@@ -127,6 +127,11 @@ struct MeshToSdfOptions : GridSpec
     bool fillInterior = false;
     /// Winding: the fast winding number's accuracy β (> 1).
     double windingAccuracy = 2.0;
+    /// Where BandMethod::Chang's per-voxel search runs (MeshToLevelSetOptions::device): the CPU,
+    /// a Vulkan device, or Auto (a discrete GPU for large bands). Bit-identical grids.
+    ComputeDevice device = ComputeDevice::Auto;
+    /// Vulkan: device memory per batch slot (bytes); 0: automatic.
+    uint64_t deviceMemoryBudget = 0;
     /// Auto: an existing validateMesh() report of this mesh (not owned); null: validate here.
     const MeshReport* validation = nullptr;
     /// Optional: the transform of the output grids (e.g. a reference grid's, see

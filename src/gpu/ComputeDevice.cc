@@ -1,0 +1,51 @@
+// SPDX-License-Identifier: Apache-2.0
+// ComputeDevice names, and what stands in for the Vulkan backend when it is not built.
+#include <levelforge/gpu/VulkanDevices.h>
+
+#include "gpu/VulkanLeafDistance.h"
+
+namespace levelforge {
+
+const char* toString(ComputeDevice d)
+{
+    switch (d) {
+    case ComputeDevice::Cpu: return "cpu";
+    case ComputeDevice::Vulkan: return "vulkan";
+    case ComputeDevice::Auto: return "auto";
+    }
+    return "cpu";
+}
+
+ComputeDevice parseComputeDevice(const std::string& text)
+{
+    if (text == "cpu") return ComputeDevice::Cpu;
+    if (text == "vulkan") return ComputeDevice::Vulkan;
+    if (text == "auto") return ComputeDevice::Auto;
+    throw InvalidArgumentError("unknown device '" + text + "' (expected cpu, vulkan or auto)");
+}
+
+#ifndef LEVELFORGE_HAVE_VULKAN
+VulkanDeviceList listVulkanDevices()
+{
+    VulkanDeviceList out;
+    out.problem = "this levelforge was built without the Vulkan backend (needs libvulkan-dev and glslc)";
+    return out;
+}
+
+uint64_t vulkanValidationMessages() { return 0; }
+
+namespace gpu_internal {
+struct LeafDistanceDevice::Impl {};
+LeafDistanceDevice::LeafDistanceDevice(const std::vector<double>&)
+{
+    throw DeviceError("Vulkan: this levelforge was built without the Vulkan backend (needs libvulkan-dev and glslc)");
+}
+LeafDistanceDevice::~LeafDistanceDevice() = default;
+std::string LeafDistanceDevice::deviceName() const { return {}; }
+uint64_t LeafDistanceDevice::slotBudget(uint64_t) const { return 0; }
+void LeafDistanceDevice::start(int, const LeafBatch&, double) {}
+bool LeafDistanceDevice::finish(int, LeafBatch&, const std::function<bool()>&) { return false; }
+} // namespace gpu_internal
+#endif
+
+} // namespace levelforge

@@ -1,0 +1,144 @@
+// SPDX-License-Identifier: Apache-2.0
+// The main road's band leaves on a Vulkan device: for every voxel of a leaf (8^3 voxels, cell
+// space: voxel centre = origin + index + 0.5), the closest of the leaf's candidate triangles
+// within the band limit. The GPU twin of the per-voxel search of MeshToLevelSet.cc.
+//
+// Exactness: the squared distance is closestPointOnTriangle()'s (core/TriangleDistance.h), term
+// for term, in double precision; every result is `precise` (SPIR-V NoContraction: no fused
+// multiply-add), so on a device with IEEE double arithmetic the values are bit-identical to the
+// CPU's. Candidates come sorted by triangle index and a later candidate wins only when strictly
+// closer, so ties go to the smaller index whatever the dispatch order.
+#version 450
+
+layout(local_size_x = 128) in;
+
+layout(std430, binding = 0) readonly buffer Corners { double corners[]; };  // 9 per triangle
+layout(std430, binding = 1) readonly buffer Leaves { int leaves[]; };        // 8 per leaf: x y z first count - - -
+layout(std430, binding = 2) readonly buffer Candidates { uint cands[]; };   // ascending per leaf
+layout(std430, binding = 3) writeonly buffer OutD2 { double outD2[]; };     // 512 per leaf
+layout(std430, binding = 4) writeonly buffer OutTri { uint outTri[]; };     // 512 per leaf, ~0u: none
+
+layout(push_constant) uniform Push
+{
+    double limit2;   // squared band limit (cells): only closer triangles count
+    uint leafCount;  // leaves in this batch
+    uint groupsX;    // workgroups along x (leaf = y * groupsX + x)
+} pc;
+
+const uint kChunk = 128u;
+shared double sCorners[kChunk * 9u];
+shared uint sTri[kChunk];
+
+double dot3(dvec3 u, dvec3 v)
+{
+    precise double r = u.x * v.x + u.y * v.y + u.z * v.z;
+    return r;
+}
+
+// |p - closest point of triangle abc|^2, as closestPointOnTriangle() computes it.
+double triangleDistanceSqr(dvec3 p, dvec3 a, dvec3 b, dvec3 c)
+{
+    precise dvec3 ab = b - a;
+    precise dvec3 ac = c - a;
+    precise dvec3 ap = p - a;
+    precise double d1 = dot3(ab, ap);
+    precise double d2 = dot3(ac, ap);
+    precise dvec3 q;
+    if (d1 <= 0.0 && d2 <= 0.0) {
+        q = a;
+    } else {
+        precise dvec3 bp = p - b;
+        precise double d3 = dot3(ab, bp);
+        precise double d4 = dot3(ac, bp);
+        if (d3 >= 0.0 && d4 <= d3) {
+            q = b;
+        } else {
+            precise double vc = d1 * d4 - d3 * d2;
+            if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+                precise double v = d1 / (d1 - d3);
+                q = a + ab * v;
+            } else {
+                precise dvec3 cp = p - c;
+                precise double d5 = dot3(ab, cp);
+                precise double d6 = dot3(ac, cp);
+                if (d6 >= 0.0 && d5 <= d6) {
+                    q = c;
+                } else {
+                    precise double vb = d5 * d2 - d1 * d6;
+                    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+                        precise double w = d2 / (d2 - d6);
+                        q = a + ac * w;
+                    } else {
+                        precise double va = d3 * d6 - d5 * d4;
+                        precise double e43 = d4 - d3;
+                        precise double e56 = d5 - d6;
+                        if (va <= 0.0 && e43 >= 0.0 && e56 >= 0.0) {
+                            precise double w = e43 / (e43 + e56);
+                            precise dvec3 bc = c - b;
+                            q = b + bc * w;
+                        } else {
+                            precise double denom = 1.0 / (va + vb + vc);
+                            precise double v = vb * denom;
+                            precise double w = vc * denom;
+                            precise dvec3 s = a + ab * v;
+                            q = s + ac * w;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    precise dvec3 e = p - q;
+    precise double r = e.x * e.x + e.y * e.y + e.z * e.z;
+    return r;
+}
+
+void main()
+{
+    const uint leaf = gl_WorkGroupID.y * pc.groupsX + gl_WorkGroupID.x;
+    if (leaf >= pc.leafCount) return; // uniform across the workgroup
+    const uint lid = gl_LocalInvocationID.x;
+    const int base = int(leaf) * 8;
+    const ivec3 origin = ivec3(leaves[base], leaves[base + 1], leaves[base + 2]);
+    const uint first = uint(leaves[base + 3]);
+    const uint count = uint(leaves[base + 4]);
+
+    dvec3 p[4];
+    double best[4];
+    uint bestTri[4];
+    for (uint k = 0u; k < 4u; ++k) {
+        const uint v = lid + 128u * k;
+        const ivec3 idx = origin + ivec3(int(v >> 6), int((v >> 3) & 7u), int(v & 7u));
+        p[k] = dvec3(idx) + dvec3(0.5);
+        best[k] = pc.limit2;
+        bestTri[k] = 0xffffffffu;
+    }
+    for (uint c0 = 0u; c0 < count; c0 += kChunk) {
+        const uint n = min(kChunk, count - c0);
+        barrier();
+        if (lid < n) {
+            const uint t = cands[first + c0 + lid];
+            sTri[lid] = t;
+            for (uint j = 0u; j < 9u; ++j) sCorners[lid * 9u + j] = corners[t * 9u + j];
+        }
+        barrier();
+        for (uint i = 0u; i < n; ++i) {
+            const uint o = i * 9u;
+            const dvec3 a = dvec3(sCorners[o], sCorners[o + 1u], sCorners[o + 2u]);
+            const dvec3 b = dvec3(sCorners[o + 3u], sCorners[o + 4u], sCorners[o + 5u]);
+            const dvec3 c = dvec3(sCorners[o + 6u], sCorners[o + 7u], sCorners[o + 8u]);
+            for (uint k = 0u; k < 4u; ++k) {
+                const double d = triangleDistanceSqr(p[k], a, b, c);
+                if (d < best[k]) {
+                    best[k] = d;
+                    bestTri[k] = sTri[i];
+                }
+            }
+        }
+    }
+    for (uint k = 0u; k < 4u; ++k) {
+        const uint v = lid + 128u * k;
+        outD2[leaf * 512u + v] = best[k];
+        outTri[leaf * 512u + v] = bestTri[k];
+    }
+}
