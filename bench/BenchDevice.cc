@@ -83,7 +83,7 @@ int main(int argc, char** argv)
     int subdivide = 0, cpuThreads = 2, threads = 0, repeat = 1;
     std::vector<int> counts{512};
     double halfWidth = 3.0;
-    bool skipCpu = false;
+    bool skipCpu = false, skipDevice = false;
     app.add_option("mesh", meshPath, "mesh file (OBJ, PLY, STL, OFF)")->required();
     app.add_option("--subdivide", subdivide, "Loop subdivision levels first (OpenMesh)")->check(CLI::Range(0, 4));
     app.add_option("--voxel-count", counts, "voxels along the longest axis (several: one row each)");
@@ -93,6 +93,7 @@ int main(int argc, char** argv)
     app.add_option("--repeat", repeat, "best of N")->check(CLI::Range(1, 20));
     app.add_option("--out", outDir, "folder for the written files");
     app.add_flag("--skip-cpu", skipCpu, "device path only");
+    app.add_flag("--skip-device", skipDevice, "CPU path only");
     CLI11_PARSE(app, argc, argv);
     openvdb::initialize();
     std::filesystem::create_directories(outDir);
@@ -121,6 +122,12 @@ int main(int argc, char** argv)
                 o.device = levelforge::ComputeDevice::Cpu;
                 tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(cpuThreads > 0 ? cpuThreads : 1 << 16));
                 cpu = runOnce(file, o, outDir + "/cpu.vdb", repeat);
+            }
+            if (skipDevice) {
+                std::printf("\nvoxel count %d, band %g: cpu (%d threads): convert %.3f s, whole process %.3f s (distance %.3f s, "
+                            "%s active voxels)\n", count, halfWidth, cpuThreads, cpu.convert, cpu.whole,
+                            cpu.stats.secondsDistance, std::to_string(cpu.stats.activeVoxels).c_str());
+                continue;
             }
             o.device = levelforge::ComputeDevice::Vulkan;
             Run dev;

@@ -2,6 +2,7 @@
 // ComputeDevice names, and what stands in for the Vulkan backend when it is not built.
 #include <levelforge/gpu/VulkanDevices.h>
 
+#include "gpu/VulkanExactDistanceTransform.h"
 #include "gpu/VulkanLeafDistance.h"
 
 namespace levelforge {
@@ -36,7 +37,7 @@ uint64_t vulkanValidationMessages() { return 0; }
 
 namespace gpu_internal {
 struct LeafDistanceDevice::Impl {};
-LeafDistanceDevice::LeafDistanceDevice(const std::vector<double>&)
+LeafDistanceDevice::LeafDistanceDevice(const LeafDeviceInput&)
 {
     throw DeviceError("Vulkan: this levelforge was built without the Vulkan backend (needs libvulkan-dev and glslc)");
 }
@@ -44,7 +45,9 @@ LeafDistanceDevice::~LeafDistanceDevice() = default;
 std::string LeafDistanceDevice::deviceName() const { return {}; }
 uint64_t LeafDistanceDevice::slotBudget(uint64_t) const { return 0; }
 void LeafDistanceDevice::start(int, const LeafBatch&, double) {}
-bool LeafDistanceDevice::finish(int, LeafBatch&, const std::function<bool()>&) { return false; }
+bool LeafDistanceDevice::finish(int, const std::function<bool()>&) { return false; }
+const uint32_t* LeafDistanceDevice::triangles(int) const { return nullptr; }
+const double* LeafDistanceDevice::distances(int) const { return nullptr; }
 } // namespace gpu_internal
 #endif
 

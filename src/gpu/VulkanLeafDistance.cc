@@ -21,19 +21,22 @@ struct Push
     double limit2;
     uint32_t leafCount;
     uint32_t groupsX;
+    uint32_t signs;
+    uint32_t pad;
 };
-static_assert(sizeof(Push) == 16, "push constants as the shader declares them");
+static_assert(sizeof(Push) == 24, "push constants as the shader declares them");
 } // namespace
 
 struct LeafDistanceDevice::Impl
 {
     std::shared_ptr<Context> ctx;
     Kernel kernel;
-    Buffer corners;
+    Buffer corners, triNormals, vertexNormals, triVertices;
+    bool signs = false;
     struct Slot
     {
-        Buffer leaves, cands, d2, tri;         // device
-        Buffer upLeaves, upCands, downD2, downTri; // staging (unused on unified memory)
+        Buffer leaves, cands, tri, d2;               // device
+        Buffer upLeaves, upCands, downTri, downD2;   // staging (unused on unified memory)
         std::unique_ptr<Submission> sub;
         size_t count = 0;
     } slots[2];
@@ -47,44 +50,87 @@ struct LeafDistanceDevice::Impl
         deviceBytes += b.size;
         peak = std::max(peak, deviceBytes);
     }
+    /// A device buffer of `bytes` filled by `fill` (through a staging buffer unless unified).
+    void upload(Buffer& dst, VkDeviceSize bytes, const char* what, const std::function<void(void*)>& fill)
+    {
+        ensure(dst, bytes, Memory::Device, what);
+        if (ctx->unifiedMemory()) { fill(dst.mapped); return; }
+        Buffer up = ctx->create(bytes, Memory::Upload, what);
+        try {
+            fill(up.mapped);
+            Submission& s = *slots[0].sub;
+            s.begin();
+            s.copy(up, dst, bytes);
+            s.barrier();
+            s.submit();
+            s.wait();
+        } catch (...) {
+            ctx->destroy(up);
+            throw;
+        }
+        ctx->destroy(up);
+    }
     ~Impl()
     {
         if (!ctx) return;
         for (Slot& s : slots) {
             s.sub.reset(); // waits for work in flight
-            for (Buffer* b : {&s.leaves, &s.cands, &s.d2, &s.tri, &s.upLeaves, &s.upCands, &s.downD2, &s.downTri})
+            for (Buffer* b : {&s.leaves, &s.cands, &s.tri, &s.d2, &s.upLeaves, &s.upCands, &s.downTri, &s.downD2})
                 if (b->buffer != VK_NULL_HANDLE) ctx->destroy(*b);
         }
-        if (corners.buffer != VK_NULL_HANDLE) ctx->destroy(corners);
+        for (Buffer* b : {&corners, &triNormals, &vertexNormals, &triVertices})
+            if (b->buffer != VK_NULL_HANDLE) ctx->destroy(*b);
         ctx->destroy(kernel);
     }
 };
 
-LeafDistanceDevice::LeafDistanceDevice(const std::vector<double>& corners) : mImpl(new Impl)
+LeafDistanceDevice::LeafDistanceDevice(const LeafDeviceInput& in) : mImpl(new Impl)
 {
     Impl& m = *mImpl;
     m.ctx = Context::get();
-    m.kernel = m.ctx->createKernel(kSpirv_leaf_distance, kSpirv_leaf_distanceBytes, 5, sizeof(Push));
+    m.kernel = m.ctx->createKernel(kSpirv_leaf_distance, kSpirv_leaf_distanceBytes, 8, sizeof(Push));
     for (auto& s : m.slots) s.sub.reset(new Submission(*m.ctx));
-    const VkDeviceSize bytes = corners.size() * sizeof(double);
     const auto t = Clock::now();
-    if (m.ctx->unifiedMemory()) {
-        m.ensure(m.corners, bytes, Memory::Device, "the triangles");
-        std::memcpy(m.corners.mapped, corners.data(), bytes);
+    const VkDeviceSize cb = in.triangles * 9 * sizeof(double);
+    m.upload(m.corners, cb, "the triangles", [&](void* p) { in.fillCorners(static_cast<double*>(p)); });
+    mStats.bytesUp += cb;
+    m.signs = bool(in.fillNormals);
+    if (m.signs) {
+        // the three arrays are filled by one call: stage them in one buffer, copy out in three
+        const VkDeviceSize nb = in.triangles * 12 * sizeof(double), vb = in.vertices * 3 * sizeof(double),
+                           ib = in.triangles * 3 * sizeof(uint32_t);
+        m.ensure(m.triNormals, nb, Memory::Device, "the triangles' normals");
+        m.ensure(m.vertexNormals, vb, Memory::Device, "the vertex normals");
+        m.ensure(m.triVertices, ib, Memory::Device, "the triangles' vertices");
+        if (m.ctx->unifiedMemory()) {
+            in.fillNormals(static_cast<double*>(m.triNormals.mapped), static_cast<double*>(m.vertexNormals.mapped),
+                           static_cast<uint32_t*>(m.triVertices.mapped));
+        } else {
+            Buffer up[3] = {m.ctx->create(nb, Memory::Upload, "the triangles' normals"),
+                            m.ctx->create(vb, Memory::Upload, "the vertex normals"),
+                            m.ctx->create(ib, Memory::Upload, "the triangles' vertices")};
+            try {
+                in.fillNormals(static_cast<double*>(up[0].mapped), static_cast<double*>(up[1].mapped),
+                               static_cast<uint32_t*>(up[2].mapped));
+                Submission& s = *m.slots[0].sub;
+                s.begin();
+                s.copy(up[0], m.triNormals, nb);
+                s.copy(up[1], m.vertexNormals, vb);
+                s.copy(up[2], m.triVertices, ib);
+                s.barrier();
+                s.submit();
+                s.wait();
+            } catch (...) {
+                for (Buffer& b : up) m.ctx->destroy(b);
+                throw;
+            }
+            for (Buffer& b : up) m.ctx->destroy(b);
+        }
+        mStats.bytesUp += nb + vb + ib;
     } else {
-        m.ensure(m.corners, bytes, Memory::Device, "the triangles");
-        Buffer up = m.ctx->create(bytes, Memory::Upload, "uploading the triangles");
-        std::memcpy(up.mapped, corners.data(), bytes);
-        Submission& s = *m.slots[0].sub;
-        s.begin();
-        s.copy(up, m.corners, bytes);
-        s.barrier();
-        s.submit();
-        try { s.wait(); } catch (...) { m.ctx->destroy(up); throw; }
-        m.ctx->destroy(up);
+        for (Buffer* b : {&m.triNormals, &m.vertexNormals, &m.triVertices}) m.ensure(*b, 4, Memory::Device, "a placeholder");
     }
     mStats.secondsCopy += since(t);
-    mStats.bytesUp += bytes;
 }
 
 LeafDistanceDevice::~LeafDistanceDevice() = default;
@@ -108,11 +154,11 @@ void LeafDistanceDevice::start(int slot, const LeafBatch& b, double limit2)
     if (s.count == 0) return;
     const auto t = Clock::now();
     const VkDeviceSize lb = b.leaves.size() * sizeof(int32_t), cb = std::max<size_t>(b.cands.size(), 1) * sizeof(uint32_t);
-    const VkDeviceSize db = s.count * 512 * sizeof(double), tb = s.count * 512 * sizeof(uint32_t);
+    const VkDeviceSize tb = s.count * 512 * sizeof(uint32_t), db = s.count * 512 * sizeof(double);
     m.ensure(s.leaves, lb, Memory::Device, "a batch of leaves");
     m.ensure(s.cands, cb, Memory::Device, "a batch's candidate triangles");
-    m.ensure(s.d2, db, Memory::Device, "a batch's distances");
     m.ensure(s.tri, tb, Memory::Device, "a batch's closest triangles");
+    m.ensure(s.d2, db, Memory::Device, "a batch's distances");
     Submission& sub = *s.sub;
     sub.begin();
     if (m.ctx->unifiedMemory()) {
@@ -121,8 +167,8 @@ void LeafDistanceDevice::start(int slot, const LeafBatch& b, double limit2)
     } else {
         m.ensure(s.upLeaves, lb, Memory::Upload, "staging a batch of leaves");
         m.ensure(s.upCands, cb, Memory::Upload, "staging a batch's candidate triangles");
-        m.ensure(s.downD2, db, Memory::Readback, "reading back a batch's distances");
         m.ensure(s.downTri, tb, Memory::Readback, "reading back a batch's closest triangles");
+        m.ensure(s.downD2, db, Memory::Readback, "reading back a batch's distances");
         std::memcpy(s.upLeaves.mapped, b.leaves.data(), lb);
         if (!b.cands.empty()) std::memcpy(s.upCands.mapped, b.cands.data(), b.cands.size() * sizeof(uint32_t));
         sub.copy(s.upLeaves, s.leaves, lb);
@@ -131,13 +177,14 @@ void LeafDistanceDevice::start(int slot, const LeafBatch& b, double limit2)
     }
     mStats.secondsCopy += since(t);
     const uint32_t maxX = std::min<uint32_t>(m.ctx->limits().maxComputeWorkGroupCount[0], 65535u);
-    Push push{limit2, uint32_t(s.count), uint32_t(std::min<size_t>(s.count, maxX))};
+    Push push{limit2, uint32_t(s.count), uint32_t(std::min<size_t>(s.count, maxX)), m.signs ? 1u : 0u, 0u};
     const uint32_t gy = uint32_t((s.count + push.groupsX - 1) / push.groupsX);
-    sub.dispatch(m.kernel, {&m.corners, &s.leaves, &s.cands, &s.d2, &s.tri}, &push, push.groupsX, gy);
+    sub.dispatch(m.kernel, {&m.corners, &s.leaves, &s.cands, &s.tri, &s.d2, &m.triNormals, &m.vertexNormals, &m.triVertices},
+                 &push, push.groupsX, gy);
     sub.barrier();
     if (!m.ctx->unifiedMemory()) {
-        sub.copy(s.d2, s.downD2, db);
         sub.copy(s.tri, s.downTri, tb);
+        sub.copy(s.d2, s.downD2, db);
         sub.barrier();
     }
     sub.submit();
@@ -148,27 +195,32 @@ void LeafDistanceDevice::start(int slot, const LeafBatch& b, double limit2)
     mStats.peakDeviceBytes = m.peak;
 }
 
-bool LeafDistanceDevice::finish(int slot, LeafBatch& b, const std::function<bool()>& interrupted)
+bool LeafDistanceDevice::finish(int slot, const std::function<bool()>& interrupted)
 {
     Impl& m = *mImpl;
     Impl::Slot& s = m.slots[slot];
-    if (s.count == 0) { b.d2.clear(); b.tri.clear(); return true; }
-    auto t = Clock::now();
+    if (s.count == 0) return true;
+    const auto t = Clock::now();
     const bool done = s.sub->wait(interrupted);
     mStats.secondsWait += since(t);
     if (!done) return false;
-    t = Clock::now();
-    const Buffer& d2 = m.ctx->unifiedMemory() ? s.d2 : s.downD2;
-    const Buffer& tri = m.ctx->unifiedMemory() ? s.tri : s.downTri;
-    m.ctx->invalidate(d2);
-    m.ctx->invalidate(tri);
-    b.d2.resize(s.count * 512);
-    b.tri.resize(s.count * 512);
-    std::memcpy(b.d2.data(), d2.mapped, b.d2.size() * sizeof(double));
-    std::memcpy(b.tri.data(), tri.mapped, b.tri.size() * sizeof(uint32_t));
-    mStats.secondsCopy += since(t);
-    mStats.bytesDown += s.count * 512 * (sizeof(double) + sizeof(uint32_t));
+    const bool unified = m.ctx->unifiedMemory();
+    m.ctx->invalidate(unified ? s.tri : s.downTri);
+    m.ctx->invalidate(unified ? s.d2 : s.downD2);
+    mStats.bytesDown += s.count * 512 * (sizeof(uint32_t) + sizeof(double));
     return true;
+}
+
+const uint32_t* LeafDistanceDevice::triangles(int slot) const
+{
+    const Impl::Slot& s = mImpl->slots[slot];
+    return static_cast<const uint32_t*>(mImpl->ctx->unifiedMemory() ? s.tri.mapped : s.downTri.mapped);
+}
+
+const double* LeafDistanceDevice::distances(int slot) const
+{
+    const Impl::Slot& s = mImpl->slots[slot];
+    return static_cast<const double*>(mImpl->ctx->unifiedMemory() ? s.d2.mapped : s.downD2.mapped);
 }
 
 } // namespace levelforge::gpu_internal

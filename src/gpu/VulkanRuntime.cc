@@ -294,7 +294,9 @@ struct ContextFactory
 std::shared_ptr<Context> Context::get()
 {
     static std::mutex m;
-    static std::shared_ptr<Context> shared;
+    // Never destroyed: at exit the driver's own statics may already be gone (the OS reclaims the
+    // device); reachable from here, so leak checkers do not report it.
+    static std::shared_ptr<Context>& shared = *new std::shared_ptr<Context>();
     const char* env = std::getenv("LEVELFORGE_VULKAN_DEVICE");
     if (env && std::strcmp(env, "none") == 0)
         throw DeviceError("Vulkan: every Vulkan device is hidden (LEVELFORGE_VULKAN_DEVICE=none)");

@@ -99,6 +99,35 @@ LeafResult finishFromDevice(const Context& ctx, const Coord& origin, Scratch& s,
     return res;
 }
 
+/// The same from the device's signed squared distances (pseudonormal signs, no closest points):
+/// d = sqrt(|d2|), inside where the sign bit is set; what computeLeaf() computes from the same
+/// triangle, feature and normal, bit for bit.
+LeafResult finishSignedFromDevice(const Context& ctx, const Coord& origin, Scratch& s, const uint32_t* tri, const double* sd2)
+{
+    std::unique_ptr<FloatLeaf> leaf;
+    const float bg = ctx.background;
+    uint64_t active = 0, found = 0;
+    for (uint32_t v = 0; v < 512; ++v) {
+        if (tri[v] == kNone) continue;
+        ++found;
+        if (!leaf) leaf.reset(new FloatLeaf(origin, bg, false));
+        const bool inside = std::signbit(sd2[v]);
+        const double d = std::sqrt(std::abs(sd2[v]));
+        if (inside ? d < ctx.intW : d < ctx.extW) {
+            leaf->setValueOn(v, float((inside ? -d : d) * ctx.voxelSize));
+            ++active;
+        } else {
+            leaf->setValueOff(v, inside ? -bg : bg);
+        }
+    }
+    s.candidateVoxels += found ? 512 : 0;
+    s.evaluations += found;
+    s.activeVoxels += active;
+    LeafResult res;
+    if (active) res.sdf = std::move(leaf);
+    return res;
+}
+
 } // namespace
 
 bool useDevice(const MeshToLevelSetOptions& o, size_t leaves, std::string& note)
@@ -133,18 +162,43 @@ void deviceDistances(const Context& ctx, const MeshToLevelSetOptions& o, const s
                      MeshToLevelSetStats& stats)
 {
     openvdb::util::NullInterrupter* interrupter = o.interrupter;
-    std::vector<double> corners(9 * ctx.mesh.triangles.size());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, ctx.mesh.triangles.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t t = r.begin(); t != r.end(); ++t)
-            for (int k = 0; k < 3; ++k)
-                for (int j = 0; j < 3; ++j) corners[9 * t + 3 * size_t(k) + size_t(j)] = ctx.cellPts[ctx.mesh.triangles[t][k]][j];
-    });
-    gpu_internal::LeafDistanceDevice dev(corners);
-    corners = std::vector<double>();
+    const size_t nt = ctx.mesh.triangles.size(), nv = ctx.mesh.points.size();
+    gpu_internal::LeafDeviceInput input;
+    input.triangles = nt;
+    input.vertices = nv;
+    input.fillCorners = [&](double* corners) {
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t t = r.begin(); t != r.end(); ++t)
+                for (int k = 0; k < 3; ++k)
+                    for (int j = 0; j < 3; ++j) corners[9 * t + 3 * size_t(k) + size_t(j)] = ctx.cellPts[ctx.mesh.triangles[t][k]][j];
+        });
+    };
+    // pseudonormal signs on the device (the normals LazyPseudoNormals would compute, once each)
+    const bool signsOnDevice = ctx.sign == SignMode::Pseudonormal && !wantClosest;
+    if (signsOnDevice) {
+        input.fillNormals = [&](double* triN, double* vertN, uint32_t* triV) {
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, nv, 2048), [&](const tbb::blocked_range<size_t>& r) {
+                for (size_t v = r.begin(); v != r.end(); ++v) {
+                    const Vec3d n = ctx.normals.vertexNormal(uint32_t(v));
+                    for (int j = 0; j < 3; ++j) vertN[3 * v + size_t(j)] = n[j];
+                }
+            });
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 2048), [&](const tbb::blocked_range<size_t>& r) {
+                for (size_t t = r.begin(); t != r.end(); ++t) {
+                    const Vec3d n[4] = {ctx.normals.faceNormal(uint32_t(t)), ctx.normals.edgeNormal(uint32_t(t), 0),
+                                        ctx.normals.edgeNormal(uint32_t(t), 1), ctx.normals.edgeNormal(uint32_t(t), 2)};
+                    for (int f = 0; f < 4; ++f)
+                        for (int j = 0; j < 3; ++j) triN[12 * t + 3 * size_t(f) + size_t(j)] = n[f][j];
+                    for (int k = 0; k < 3; ++k) triV[3 * t + size_t(k)] = uint32_t(ctx.mesh.triangles[t][k]);
+                }
+            });
+        };
+    }
+    gpu_internal::LeafDistanceDevice dev(input);
     stats.device = "vulkan: " + dev.deviceName();
     const uint64_t budget = dev.slotBudget(o.deviceMemoryBudget);
     constexpr size_t kChunk = 256;
-    constexpr uint64_t kLeafBytes = 512 * (sizeof(double) + sizeof(uint32_t)) + 8 * sizeof(int32_t);
+    constexpr uint64_t kLeafBytes = 512 * (sizeof(uint32_t) + sizeof(double)) + 8 * sizeof(int32_t);
     std::vector<std::vector<uint32_t>> lists(kChunk);
     tbb::enumerable_thread_specific<std::vector<uint32_t>> stacks;
     size_t next = 0;
@@ -177,12 +231,15 @@ void deviceDistances(const Context& ctx, const MeshToLevelSetOptions& o, const s
             if (taken < n) break;
         }
     };
-    auto finishBatch = [&](gpu_internal::LeafBatch& b) {
+    auto finishBatch = [&](gpu_internal::LeafBatch& b, int slotIndex) {
+        const uint32_t* tri = dev.triangles(slotIndex);
+        const double* sd2 = dev.distances(slotIndex);
         tbb::parallel_for(tbb::blocked_range<size_t>(0, b.count(), 4), [&](const tbb::blocked_range<size_t>& r) {
             Scratch& s = scratch.local();
             for (size_t j = r.begin(); j != r.end(); ++j) {
                 const Coord origin(b.leaves[8 * j], b.leaves[8 * j + 1], b.leaves[8 * j + 2]);
-                out[b.slots[j]] = finishFromDevice(ctx, origin, s, wantClosest, b.tri.data() + 512 * j);
+                out[b.slots[j]] = signsOnDevice ? finishSignedFromDevice(ctx, origin, s, tri + 512 * j, sd2 + 512 * j)
+                                                : finishFromDevice(ctx, origin, s, wantClosest, tri + 512 * j);
             }
         });
         done = b.slots.empty() ? done : b.slots.back() + 1;
@@ -202,8 +259,8 @@ void deviceDistances(const Context& ctx, const MeshToLevelSetOptions& o, const s
         const int prev = 1 - slot;
         if (inFlight[prev]) {
             inFlight[prev] = false;
-            if (!dev.finish(prev, batch[prev], stopAsked)) { stopped = true; break; }
-            finishBatch(batch[prev]);
+            if (!dev.finish(prev, stopAsked)) { stopped = true; break; }
+            finishBatch(batch[prev], prev);
         }
         if (!have) break;
         if (stopAsked()) { stopped = true; break; }
@@ -211,7 +268,7 @@ void deviceDistances(const Context& ctx, const MeshToLevelSetOptions& o, const s
     }
     if (stopped) {
         for (int k = 0; k < 2; ++k)
-            if (inFlight[k]) dev.finish(k, batch[k], {});
+            if (inFlight[k]) dev.finish(k, {});
         throw InterruptedError("interrupted while computing distances");
     }
     const gpu_internal::LeafDeviceStats& ds = dev.stats();

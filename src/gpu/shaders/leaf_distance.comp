@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // The main road's band leaves on a Vulkan device: for every voxel of a leaf (8^3 voxels, cell
 // space: voxel centre = origin + index + 0.5), the closest of the leaf's candidate triangles
-// within the band limit. The GPU twin of the per-voxel search of MeshToLevelSet.cc.
+// within the band limit (its index; the CPU evaluates that one triangle again for the closest
+// point and the sign). The GPU twin of the per-voxel search of MeshToLevelSet.cc.
 //
 // Exactness: the squared distance is closestPointOnTriangle()'s (core/TriangleDistance.h), term
 // for term, in double precision; every result is `precise` (SPIR-V NoContraction: no fused
@@ -15,14 +16,18 @@ layout(local_size_x = 128) in;
 layout(std430, binding = 0) readonly buffer Corners { double corners[]; };  // 9 per triangle
 layout(std430, binding = 1) readonly buffer Leaves { int leaves[]; };        // 8 per leaf: x y z first count - - -
 layout(std430, binding = 2) readonly buffer Candidates { uint cands[]; };   // ascending per leaf
-layout(std430, binding = 3) writeonly buffer OutD2 { double outD2[]; };     // 512 per leaf
-layout(std430, binding = 4) writeonly buffer OutTri { uint outTri[]; };     // 512 per leaf, ~0u: none
+layout(std430, binding = 3) writeonly buffer OutTri { uint outTri[]; };     // 512 per leaf, ~0u: none
+layout(std430, binding = 4) writeonly buffer OutD2 { double outD2[]; };     // 512 per leaf, see main()
+layout(std430, binding = 5) readonly buffer TriNormals { double triN[]; };  // 12 per triangle: face, e01, e12, e20
+layout(std430, binding = 6) readonly buffer VertexNormals { double vertN[]; }; // 3 per vertex
+layout(std430, binding = 7) readonly buffer TriVertices { uint triV[]; };   // 3 per triangle
 
 layout(push_constant) uniform Push
 {
     double limit2;   // squared band limit (cells): only closer triangles count
     uint leafCount;  // leaves in this batch
     uint groupsX;    // workgroups along x (leaf = y * groupsX + x)
+    uint signs;      // 1: pseudonormal signs in outD2 (bindings 5-7 hold the normals)
 } pc;
 
 const uint kChunk = 128u;
@@ -35,8 +40,9 @@ double dot3(dvec3 u, dvec3 v)
     return r;
 }
 
-// |p - closest point of triangle abc|^2, as closestPointOnTriangle() computes it.
-double triangleDistanceSqr(dvec3 p, dvec3 a, dvec3 b, dvec3 c)
+// |p - q|^2 for q the closest point of triangle abc, with q and its feature (TriangleFeature:
+// 0 face, 1-3 vertices, 4 edge 01, 5 edge 12, 6 edge 20), as closestPointOnTriangle() computes them.
+double closestPoint(dvec3 p, dvec3 a, dvec3 b, dvec3 c, out dvec3 qOut, out uint feature)
 {
     precise dvec3 ab = b - a;
     precise dvec3 ac = c - a;
@@ -46,28 +52,33 @@ double triangleDistanceSqr(dvec3 p, dvec3 a, dvec3 b, dvec3 c)
     precise dvec3 q;
     if (d1 <= 0.0 && d2 <= 0.0) {
         q = a;
+        feature = 1u;
     } else {
         precise dvec3 bp = p - b;
         precise double d3 = dot3(ab, bp);
         precise double d4 = dot3(ac, bp);
         if (d3 >= 0.0 && d4 <= d3) {
             q = b;
+            feature = 2u;
         } else {
             precise double vc = d1 * d4 - d3 * d2;
             if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
                 precise double v = d1 / (d1 - d3);
                 q = a + ab * v;
+                feature = 4u;
             } else {
                 precise dvec3 cp = p - c;
                 precise double d5 = dot3(ab, cp);
                 precise double d6 = dot3(ac, cp);
                 if (d6 >= 0.0 && d5 <= d6) {
                     q = c;
+                    feature = 3u;
                 } else {
                     precise double vb = d5 * d2 - d1 * d6;
                     if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
                         precise double w = d2 / (d2 - d6);
                         q = a + ac * w;
+                        feature = 6u;
                     } else {
                         precise double va = d3 * d6 - d5 * d4;
                         precise double e43 = d4 - d3;
@@ -76,21 +87,30 @@ double triangleDistanceSqr(dvec3 p, dvec3 a, dvec3 b, dvec3 c)
                             precise double w = e43 / (e43 + e56);
                             precise dvec3 bc = c - b;
                             q = b + bc * w;
+                            feature = 5u;
                         } else {
                             precise double denom = 1.0 / (va + vb + vc);
                             precise double v = vb * denom;
                             precise double w = vc * denom;
                             precise dvec3 s = a + ab * v;
                             q = s + ac * w;
+                            feature = 0u;
                         }
                     }
                 }
             }
         }
     }
+    qOut = q;
     precise dvec3 e = p - q;
     precise double r = e.x * e.x + e.y * e.y + e.z * e.z;
     return r;
+}
+
+dvec3 cornerOf(uint t, uint k)
+{
+    const uint o = t * 9u + 3u * k;
+    return dvec3(corners[o], corners[o + 1u], corners[o + 2u]);
 }
 
 void main()
@@ -128,7 +148,9 @@ void main()
             const dvec3 b = dvec3(sCorners[o + 3u], sCorners[o + 4u], sCorners[o + 5u]);
             const dvec3 c = dvec3(sCorners[o + 6u], sCorners[o + 7u], sCorners[o + 8u]);
             for (uint k = 0u; k < 4u; ++k) {
-                const double d = triangleDistanceSqr(p[k], a, b, c);
+                dvec3 q;
+                uint f;
+                const double d = closestPoint(p[k], a, b, c, q, f);
                 if (d < best[k]) {
                     best[k] = d;
                     bestTri[k] = sTri[i];
@@ -136,9 +158,31 @@ void main()
             }
         }
     }
+    // outD2: the closest triangle's squared distance, negated (sign bit set, also for 0) where
+    // the pseudonormal of its closest feature says inside: (p - q) . n < 0, as
+    // LazyPseudoNormals::isInside() decides it.
     for (uint k = 0u; k < 4u; ++k) {
         const uint v = lid + 128u * k;
-        outD2[leaf * 512u + v] = best[k];
-        outTri[leaf * 512u + v] = bestTri[k];
+        const uint t = bestTri[k];
+        outTri[leaf * 512u + v] = t;
+        if (t == 0xffffffffu) continue;
+        double value = best[k];
+        if (pc.signs == 1u) {
+            dvec3 q;
+            uint f;
+            const double d = closestPoint(p[k], cornerOf(t, 0u), cornerOf(t, 1u), cornerOf(t, 2u), q, f);
+            dvec3 n;
+            if (f == 0u || f >= 4u) {
+                const uint o = t * 12u + (f == 0u ? 0u : 3u * (f - 3u));
+                n = dvec3(triN[o], triN[o + 1u], triN[o + 2u]);
+            } else {
+                const uint o = triV[t * 3u + (f - 1u)] * 3u;
+                n = dvec3(vertN[o], vertN[o + 1u], vertN[o + 2u]);
+            }
+            precise dvec3 e = p[k] - q;
+            precise double s = dot3(e, n);
+            value = s < 0.0 ? -d : d;
+        }
+        outD2[leaf * 512u + v] = value;
     }
 }
