@@ -64,6 +64,14 @@ const char* typeName(VkPhysicalDeviceType t)
     }
 }
 
+/// Test aid: LEVELFORGE_VULKAN_INJECT=oom fails device allocations as out of device memory,
+/// =lost reports the device lost after each submission completes.
+bool injected(const char* what)
+{
+    const char* v = std::getenv("LEVELFORGE_VULKAN_INJECT");
+    return v && std::strcmp(v, what) == 0;
+}
+
 bool validationWanted()
 {
     const char* v = std::getenv("LEVELFORGE_VULKAN_VALIDATION");
@@ -301,7 +309,7 @@ std::shared_ptr<Context> Context::get()
     if (env && std::strcmp(env, "none") == 0)
         throw DeviceError("Vulkan: every Vulkan device is hidden (LEVELFORGE_VULKAN_DEVICE=none)");
     std::lock_guard<std::mutex> lock(m);
-    if (!shared) shared = ContextFactory::make();
+    if (!shared || shared->mLost) shared = ContextFactory::make(); // a lost device is opened afresh
     return shared;
 }
 
@@ -321,6 +329,7 @@ Context::~Context()
 void Context::check(VkResult r, const char* what) const
 {
     if (r == VK_SUCCESS) return;
+    if (r == VK_ERROR_DEVICE_LOST) mLost = true;
     std::ostringstream os;
     os << "Vulkan device '" << mInfo.name << "': " << resultName(r) << " (VkResult " << int(r) << ") while " << what;
     throw DeviceError(os.str());
@@ -367,7 +376,9 @@ Buffer Context::create(VkDeviceSize bytes, Memory where, const char* what)
     VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
     ai.allocationSize = req.size;
     ai.memoryTypeIndex = type;
-    const VkResult r = mApi.vkAllocateMemory(mDevice, &ai, nullptr, &b.memory);
+    const VkResult r = where == Memory::Device && bytes > 4 && injected("oom")
+                           ? VK_ERROR_OUT_OF_DEVICE_MEMORY
+                           : mApi.vkAllocateMemory(mDevice, &ai, nullptr, &b.memory);
     if (r != VK_SUCCESS) {
         mApi.vkDestroyBuffer(mDevice, b.buffer, nullptr);
         std::ostringstream os;
@@ -567,6 +578,7 @@ bool Submission::wait(const std::function<bool()>& interrupted)
         if (!stop && interrupted && interrupted()) stop = true; // the dispatch in flight still completes
     }
     mPending = false;
+    if (injected("lost")) mCtx.check(VK_ERROR_DEVICE_LOST, "waiting for the device (injected by LEVELFORGE_VULKAN_INJECT)");
     return !stop;
 }
 

@@ -130,6 +130,7 @@ private:
     VkPhysicalDeviceLimits mLimits{};
     VulkanDeviceInfo mInfo;
     bool mUnified = false;
+    mutable bool mLost = false; // set by check() on VK_ERROR_DEVICE_LOST: get() opens a new one
     std::mutex mQueueMutex;
     friend struct ContextFactory;
 };

@@ -140,6 +140,7 @@ bool useDevice(const MeshToLevelSetOptions& o, size_t leaves, std::string& note)
         note = "device auto: every Vulkan device is hidden (LEVELFORGE_VULKAN_DEVICE=none); the CPU was used";
         return false;
     }
+    if (env && *env) return true; // a device picked by name or index: auto uses it, whatever its type
     static std::once_flag once;
     static bool discrete = false;
     static std::string why;

@@ -286,3 +286,33 @@ TEST_F(VulkanTest, CliDeviceVulkanWritesTheCpuGridAndFailsCleanlyWithoutADevice)
     unsetenv("LEVELFORGE_VULKAN_DEVICE");
 }
 #endif
+
+TEST_F(VulkanTest, OutOfDeviceMemoryAndDeviceLostFailVulkanAndFallBackUnderAuto)
+{
+    const TriangleMesh mesh = makeTorusKnot();
+    const auto cpu = meshToLevelSet(mesh, options(0.04, 3.0, SignMode::Pseudonormal, ComputeDevice::Cpu));
+    setenv("LEVELFORGE_VULKAN_DEVICE", "0", 1); // picked by index: auto uses it, whatever its type
+    for (const char* fault : {"oom", "lost"}) {
+        setenv("LEVELFORGE_VULKAN_INJECT", fault, 1);
+        try {
+            meshToLevelSet(mesh, options(0.04, 3.0, SignMode::Pseudonormal, ComputeDevice::Vulkan));
+            ADD_FAILURE() << fault << ": no DeviceError";
+        } catch (const DeviceError& e) {
+            const std::string m = e.what();
+            EXPECT_NE(m.find(std::string(fault) == "oom" ? "out of device memory" : "device lost"), std::string::npos) << m;
+        }
+        MeshToLevelSetOptions o = options(0.04, 3.0, SignMode::Pseudonormal, ComputeDevice::Auto);
+        o.deviceMinLeaves = 0;
+        MeshToLevelSetStats s;
+        const auto grid = meshToLevelSet(mesh, o, &s);
+        EXPECT_EQ(s.device, "cpu") << fault;
+        EXPECT_NE(s.deviceNote.find("the CPU was used"), std::string::npos) << s.deviceNote;
+        expectIdentical(*cpu, *grid, std::string("auto after ") + fault);
+    }
+    unsetenv("LEVELFORGE_VULKAN_INJECT");
+    // the device works again afterwards (a lost device is opened afresh)
+    MeshToLevelSetStats s;
+    expectIdentical(*cpu, *meshToLevelSet(mesh, options(0.04, 3.0, SignMode::Pseudonormal, ComputeDevice::Vulkan), &s), "after");
+    EXPECT_EQ(s.device.rfind("vulkan: ", 0), 0u);
+    unsetenv("LEVELFORGE_VULKAN_DEVICE");
+}

@@ -14,7 +14,10 @@
 /// Environment:
 ///   * LEVELFORGE_VULKAN_DEVICE: `none` hides every device (simulates a machine without one);
 ///     a number picks the device of that index in listVulkanDevices(); any other text picks the
-///     first device whose name contains it.
+///     first device whose name contains it. A device picked this way is used by `Auto` too,
+///     whatever its type.
+///   * LEVELFORGE_VULKAN_INJECT=oom|lost (a test aid): device allocations fail as out of device
+///     memory, or every completed submission reports the device lost.
 ///   * LEVELFORGE_VULKAN_VALIDATION=1: enables the Khronos validation layer (tests do); every
 ///     message it prints is counted (vulkanValidationMessages()) and echoed on stderr.
 #pragma once
