@@ -17,6 +17,8 @@
 #include <levelforge/io/MeshIO.h>
 #include <levelforge/io/VdbIO.h>
 #include <levelforge/mesh/MeshToLevelSet.h>
+#include <levelforge/gpu/VulkanSlabBackend.h>
+#include <levelforge/scan/TetScanConversion.h>
 
 #include <openvdb/openvdb.h>
 #include <tbb/global_control.h>
@@ -83,7 +85,7 @@ int main(int argc, char** argv)
     int subdivide = 0, cpuThreads = 2, threads = 0, repeat = 1;
     std::vector<int> counts{512};
     double halfWidth = 3.0;
-    bool skipCpu = false, skipDevice = false;
+    bool skipCpu = false, skipDevice = false, scan = false;
     app.add_option("mesh", meshPath, "mesh file (OBJ, PLY, STL, OFF)")->required();
     app.add_option("--subdivide", subdivide, "Loop subdivision levels first (OpenMesh)")->check(CLI::Range(0, 4));
     app.add_option("--voxel-count", counts, "voxels along the longest axis (several: one row each)");
@@ -94,6 +96,7 @@ int main(int argc, char** argv)
     app.add_option("--out", outDir, "folder for the written files");
     app.add_flag("--skip-cpu", skipCpu, "device path only");
     app.add_flag("--skip-device", skipDevice, "CPU path only");
+    app.add_flag("--scan", scan, "also T4 scan conversion (OBB shells): CpuSlabBackend vs VulkanSlabBackend, in process");
     CLI11_PARSE(app, argc, argv);
     openvdb::initialize();
     std::filesystem::create_directories(outDir);
@@ -157,6 +160,35 @@ int main(int argc, char** argv)
                             bad == 0 ? "bit-identical" : ("DIFFER in " + std::to_string(bad) + " voxels").c_str());
             }
             std::fflush(stdout);
+            if (scan) {
+                const levelforge::TriangleMesh mesh = levelforge::readMesh(file);
+                levelforge::TetScanOptions so;
+                so.voxelCount = count;
+                so.exteriorWidth = so.interiorWidth = halfWidth;
+                levelforge::TetScanStats cs, gs;
+                double ct = 0;
+                openvdb::FloatGrid::Ptr cg;
+                {
+                    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(cpuThreads > 0 ? cpuThreads : 1 << 16));
+                    const auto t0 = Clock::now();
+                    cg = levelforge::meshToLevelSetScan(mesh, so, &cs);
+                    ct = since(t0);
+                }
+                tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads > 0 ? threads : 1 << 16));
+                levelforge::VulkanSlabBackend backend;
+                so.backend = &backend;
+                const auto t0 = Clock::now();
+                const auto gg = levelforge::meshToLevelSetScan(mesh, so, &gs);
+                const double gt = since(t0);
+                const auto bs = backend.stats();
+                const uint64_t bad = differences(*cg, *gg);
+                std::printf("  T4 scan (obb): cpu %.3f s (fill %.3f s), vulkan %.3f s (fill %.3f s, waited %.3f s, %llu batches, %llu items, "
+                            "peak %.1f MiB): %.2fx; grids %s\n",
+                            ct, cs.secondsFill, gt, gs.secondsFill, bs.secondsWait, (unsigned long long)bs.batches,
+                            (unsigned long long)bs.items, double(bs.peakDeviceBytes) / 1048576.0, ct / gt,
+                            bad == 0 ? "bit-identical" : ("DIFFER in " + std::to_string(bad) + " voxels").c_str());
+                std::fflush(stdout);
+            }
         }
     } catch (const std::exception& e) {
         std::cerr << "levelforge_bench_device: " << e.what() << "\n";

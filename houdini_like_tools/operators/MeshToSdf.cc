@@ -74,6 +74,7 @@ void printScanStats(std::ostream& os, const TetScanStats& s)
        << "  voxels rasterized:       " << withThousands(s.voxelsRasterized) << " ("
        << fmt("%.2f", s.overlapFactor()) << " per active voxel)\n"
        << "  active voxels:           " << withThousands(s.activeVoxels) << "\n"
+       << "  slab device:             " << s.device << (s.deviceNote.empty() ? "" : " (" + s.deviceNote + ")") << "\n"
        << "  seconds: shell " << fmt("%.3f", s.secondsShell) << ", sort " << fmt("%.3f", s.secondsSort)
        << ", sweep " << fmt("%.3f", s.secondsSweep) << ", fill " << fmt("%.3f", s.secondsFill)
        << ", finish " << fmt("%.3f", s.secondsFinish) << "\n";
@@ -204,8 +205,8 @@ void cookMeshToSdf(OperatorArgs& args)
         << (options.fillInterior ? ", interior filled" : "") << "\n"
         << "  time: " << fmt("%.2f", convertSeconds) << " s conversion, "
         << fmt("%.2f", totalSeconds) << " s total\n";
-    if (!stats.band.deviceNote.empty() && args.isSet("device"))
-        err << "levelforge: warning: " << stats.band.deviceNote << "\n";
+    for (const std::string* note : {&stats.band.deviceNote, &stats.scan.deviceNote})
+        if (!note->empty() && args.isSet("device")) err << "levelforge: warning: " << *note << "\n";
     if (report && options.method == BandMethod::Chang) printStats(out, stats.band);
     if (report && stats.sign == SignMode::Winding && options.method == BandMethod::Chang) {
         const MeshToLevelSetStats& b = stats.band;
@@ -282,7 +283,7 @@ LEVELFORGE_REGISTER_OPERATOR(
                              {"auto", "pseudonormal", "winding", "unsigned"})
                    .defaultValue("auto"))
         .param(Param::choice("device", "Compute Device",
-                             "Where --method chang's per-voxel search runs: cpu; vulkan (a Vulkan device "
+                             "Where --method chang's per-voxel search (and --method scan's dense slabs) runs: cpu; vulkan (a Vulkan device "
                              "with 64-bit floats, see 'levelforge devices'; an error when there is none); "
                              "auto: a discrete GPU when the band is large, else the CPU. The grids are "
                              "bit-identical on every device",

@@ -9,6 +9,7 @@
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/Metadata.h>
+#include <levelforge/gpu/VulkanDevices.h>
 #include <levelforge/volume/SparseVolumeToLevelSet.h>
 #include <levelforge/io/VdbIO.h>
 #include <levelforge/io/VolumeIO.h>
@@ -120,6 +121,7 @@ VolumeToLevelSetOptions levelSetOptionsFrom(OperatorArgs& args)
     opt.subvoxel = args.getBool("subvoxel");
     readGridParams(args, opt);
     opt.fillInterior = args.getBool("fill-interior");
+    opt.device = parseComputeDevice(args.getString("device"));
     if (!args.isSet("iso")) {
         args.err() << "levelforge: note: no --iso given; using 0 (samples >= 0 are inside)\n";
     }
@@ -165,6 +167,9 @@ void cookSparse(OperatorArgs& args, const std::string& input, const std::string&
         throw InvalidArgumentError(input + ": " + e.what());
     }
     const double seconds = secondsSince(t1);
+    if (opt.device == ComputeDevice::Vulkan)
+        args.err() << "levelforge: warning: device vulkan: --sparse runs on the CPU (only the dense exact transform "
+                      "of binary features runs on a device)\n";
     writeVolumeLevelSet(grid, opt, grid->voxelSize()[0], input, output,
                         std::string("satherley-jones-") + volumeDistanceMethodName(opt.method) + "-subvoxel-sparse");
     std::ostream& os = args.out();
@@ -231,6 +236,11 @@ void cookVolumeToSdf(OperatorArgs& args)
        << "  time: " << fmt("%.2f", seconds) << " s (classify " << fmt("%.2f", st.secondsClassify)
        << ", transform " << fmt("%.2f", st.secondsTransform) << ", build " << fmt("%.2f", st.secondsBuild)
        << "), " << fmt("%.2f", secondsSince(t0)) << " s total\n";
+    if (st.device != "cpu")
+        os << "  device: " << st.device << " (transfers " << fmt("%.3f", st.secondsDeviceTransfer) << " s, kernels "
+           << fmt("%.3f", st.secondsDeviceCompute) << " s, peak device memory "
+           << fmt("%.1f", double(st.devicePeakBytes) / 1048576.0) << " MiB)\n";
+    if (!st.deviceNote.empty() && args.isSet("device")) args.err() << "levelforge: warning: " << st.deviceNote << "\n";
     for (const std::string& w : info.warnings) args.err() << "levelforge: warning: " << input << ": " << w << "\n";
 }
 
@@ -265,6 +275,13 @@ LEVELFORGE_REGISTER_OPERATOR(
         .params(gridParams(volumeGridParams()))
         .param(Param::flag("fill-interior", "Fill Interior", "Keep every inside voxel active")
                    .exclusiveWith("interior-band"))
+        .param(Param::choice("device", "Compute Device",
+                             "Where --method exact (binary features, no --subvoxel) runs: cpu; vulkan (a "
+                             "Vulkan device with 64-bit floats, see 'levelforge devices'; an error when there "
+                             "is none); auto: a discrete GPU when the volume has at least 2^24 samples, else "
+                             "the CPU. The distances are bit-identical on every device",
+                             {"auto", "cpu", "vulkan"})
+                   .defaultValue("auto"))
         .param(Param::string("vdb-grid", "Input VDB Grid", "Grid to read from a .vdb input (default: the first scalar grid)"))
         .param(Param::flag("sparse", "Sparse",
                            ".vdb input: work on the grid's own sparse topology (exact band around the "

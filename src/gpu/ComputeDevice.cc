@@ -48,6 +48,15 @@ void LeafDistanceDevice::start(int, const LeafBatch&, double) {}
 bool LeafDistanceDevice::finish(int, const std::function<bool()>&) { return false; }
 const uint32_t* LeafDistanceDevice::triangles(int) const { return nullptr; }
 const double* LeafDistanceDevice::distances(int) const { return nullptr; }
+uint64_t edtDeviceBudget(uint64_t)
+{
+    throw DeviceError("Vulkan: this levelforge was built without the Vulkan backend (needs libvulkan-dev and glslc)");
+}
+ScalarVolume deviceExactDistanceTransform(const MaskVolume&, uint64_t, openvdb::util::NullInterrupter*,
+                                          ExactTransformStats&)
+{
+    throw DeviceError("Vulkan: this levelforge was built without the Vulkan backend (needs libvulkan-dev and glslc)");
+}
 } // namespace gpu_internal
 #endif
 

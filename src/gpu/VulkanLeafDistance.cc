@@ -22,9 +22,11 @@ struct Push
     uint32_t leafCount;
     uint32_t groupsX;
     uint32_t signs;
-    uint32_t pad;
+    uint32_t candBegin;
+    uint32_t candEnd;
+    uint32_t last;
 };
-static_assert(sizeof(Push) == 24, "push constants as the shader declares them");
+static_assert(sizeof(Push) == 32, "push constants as the shader declares them");
 } // namespace
 
 struct LeafDistanceDevice::Impl
@@ -92,6 +94,8 @@ LeafDistanceDevice::LeafDistanceDevice(const LeafDeviceInput& in) : mImpl(new Im
     for (auto& s : m.slots) s.sub.reset(new Submission(*m.ctx));
     const auto t = Clock::now();
     const VkDeviceSize cb = in.triangles * 9 * sizeof(double);
+    m.ctx->requireRange(cb, "the triangles' corners");
+    if (in.fillNormals) m.ctx->requireRange(in.triangles * 12 * sizeof(double), "the triangles' normals");
     m.upload(m.corners, cb, "the triangles", [&](void* p) { in.fillCorners(static_cast<double*>(p)); });
     mStats.bytesUp += cb;
     m.signs = bool(in.fillNormals);
@@ -142,8 +146,8 @@ std::string LeafDistanceDevice::deviceName() const
 
 uint64_t LeafDistanceDevice::slotBudget(uint64_t override) const
 {
-    if (override) return override;
-    return std::min<uint64_t>(mImpl->ctx->info().deviceLocalBytes / 4, uint64_t(512) << 20);
+    const uint64_t b = override ? override : std::min<uint64_t>(mImpl->ctx->info().deviceLocalBytes / 4, uint64_t(512) << 20);
+    return std::min<uint64_t>(b, mImpl->ctx->maxBufferRange());
 }
 
 void LeafDistanceDevice::start(int slot, const LeafBatch& b, double limit2)
@@ -155,6 +159,7 @@ void LeafDistanceDevice::start(int slot, const LeafBatch& b, double limit2)
     const auto t = Clock::now();
     const VkDeviceSize lb = b.leaves.size() * sizeof(int32_t), cb = std::max<size_t>(b.cands.size(), 1) * sizeof(uint32_t);
     const VkDeviceSize tb = s.count * 512 * sizeof(uint32_t), db = s.count * 512 * sizeof(double);
+    m.ctx->requireRange(std::max(cb, db), "a batch of leaves (one leaf's candidate triangles)");
     m.ensure(s.leaves, lb, Memory::Device, "a batch of leaves");
     m.ensure(s.cands, cb, Memory::Device, "a batch's candidate triangles");
     m.ensure(s.tri, tb, Memory::Device, "a batch's closest triangles");
@@ -177,11 +182,21 @@ void LeafDistanceDevice::start(int slot, const LeafBatch& b, double limit2)
     }
     mStats.secondsCopy += since(t);
     const uint32_t maxX = std::min<uint32_t>(m.ctx->limits().maxComputeWorkGroupCount[0], 65535u);
-    Push push{limit2, uint32_t(s.count), uint32_t(std::min<size_t>(s.count, maxX)), m.signs ? 1u : 0u, 0u};
+    // candidate windows: one on a GPU; on a CPU device (lavapipe cuts loops after 65535
+    // iterations per invocation) windows of 16384 candidates, one dispatch each
+    uint32_t maxCount = 0;
+    for (size_t j = 0; j < s.count; ++j) maxCount = std::max(maxCount, uint32_t(b.leaves[8 * j + 4]));
+    const uint32_t window = m.ctx->info().type == "cpu" ? 16384u : std::max(maxCount, 1u);
+    Push push{limit2, uint32_t(s.count), uint32_t(std::min<size_t>(s.count, maxX)), m.signs ? 1u : 0u, 0u, 0u, 0u};
     const uint32_t gy = uint32_t((s.count + push.groupsX - 1) / push.groupsX);
-    sub.dispatch(m.kernel, {&m.corners, &s.leaves, &s.cands, &s.tri, &s.d2, &m.triNormals, &m.vertexNormals, &m.triVertices},
-                 &push, push.groupsX, gy);
-    sub.barrier();
+    for (uint32_t begin = 0; begin == 0 || begin < maxCount; begin += window) {
+        push.candBegin = begin;
+        push.candEnd = begin + window;
+        push.last = push.candEnd >= maxCount ? 1u : 0u;
+        sub.dispatch(m.kernel, {&m.corners, &s.leaves, &s.cands, &s.tri, &s.d2, &m.triNormals, &m.vertexNormals, &m.triVertices},
+                     &push, push.groupsX, gy);
+        sub.barrier();
+    }
     if (!m.ctx->unifiedMemory()) {
         sub.copy(s.tri, s.downTri, tb);
         sub.copy(s.d2, s.downD2, db);

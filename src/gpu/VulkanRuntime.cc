@@ -134,11 +134,13 @@ bool createInstance(Instance& out, std::string& why)
         layers.push_back("VK_LAYER_KHRONOS_validation");
         extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
     }
-    VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+    VkApplicationInfo app{};
+    app.sType = VK_STRUCTURE_TYPE_APPLICATION_INFO;
     app.pApplicationName = "levelforge";
     app.pEngineName = "levelforge";
     app.apiVersion = VK_API_VERSION_1_1;
-    VkInstanceCreateInfo ci{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+    VkInstanceCreateInfo ci{};
+    ci.sType = VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO;
     ci.pApplicationInfo = &app;
     ci.enabledLayerCount = uint32_t(layers.size());
     ci.ppEnabledLayerNames = layers.data();
@@ -159,7 +161,8 @@ bool createInstance(Instance& out, std::string& why)
         api.vkDestroyDebugUtilsMessengerEXT =
             reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(gi("vkDestroyDebugUtilsMessengerEXT"));
         if (api.vkCreateDebugUtilsMessengerEXT) {
-            VkDebugUtilsMessengerCreateInfoEXT mi{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+            VkDebugUtilsMessengerCreateInfoEXT mi{};
+            mi.sType = VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT;
             mi.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
             mi.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
                              VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
@@ -277,13 +280,15 @@ struct ContextFactory
         api.vkGetPhysicalDeviceProperties(ctx->mPhysical, &props);
         ctx->mLimits = props.limits;
         const float priority = 1.0f;
-        VkDeviceQueueCreateInfo qi{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+        VkDeviceQueueCreateInfo qi{};
+        qi.sType = VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO;
         qi.queueFamilyIndex = ctx->mFamily;
         qi.queueCount = 1;
         qi.pQueuePriorities = &priority;
         VkPhysicalDeviceFeatures features{};
         features.shaderFloat64 = VK_TRUE;
-        VkDeviceCreateInfo di{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+        VkDeviceCreateInfo di{};
+        di.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO;
         di.queueCreateInfoCount = 1;
         di.pQueueCreateInfos = &qi;
         di.pEnabledFeatures = &features;
@@ -335,11 +340,21 @@ void Context::check(VkResult r, const char* what) const
     throw DeviceError(os.str());
 }
 
+void Context::requireRange(uint64_t bytes, const char* what) const
+{
+    if (bytes <= maxBufferRange()) return;
+    std::ostringstream os;
+    os << "Vulkan device '" << mInfo.name << "': " << what << " need " << (double(bytes) / 1048576.0)
+       << " MiB in one storage buffer; this device allows " << (double(maxBufferRange()) / 1048576.0) << " MiB";
+    throw DeviceError(os.str());
+}
+
 Buffer Context::create(VkDeviceSize bytes, Memory where, const char* what)
 {
     Buffer b;
     b.size = std::max<VkDeviceSize>(bytes, 4);
-    VkBufferCreateInfo bi{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+    VkBufferCreateInfo bi{};
+    bi.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO;
     bi.size = b.size;
     bi.usage = VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     if (where == Memory::Device || mUnified) bi.usage |= VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
@@ -373,7 +388,8 @@ Buffer Context::create(VkDeviceSize bytes, Memory where, const char* what)
         mApi.vkDestroyBuffer(mDevice, b.buffer, nullptr);
         throw DeviceError("Vulkan device '" + mInfo.name + "': no suitable memory type for " + what);
     }
-    VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+    VkMemoryAllocateInfo ai{};
+    ai.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
     ai.allocationSize = req.size;
     ai.memoryTypeIndex = type;
     const VkResult r = where == Memory::Device && bytes > 4 && injected("oom")
@@ -409,7 +425,8 @@ void Context::destroy(Buffer& b)
 void Context::invalidate(const Buffer& b)
 {
     if (b.coherent || !b.mapped) return;
-    VkMappedMemoryRange r{VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE};
+    VkMappedMemoryRange r{};
+    r.sType = VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE;
     r.memory = b.memory;
     r.offset = 0;
     r.size = VK_WHOLE_SIZE;
@@ -421,7 +438,8 @@ Kernel Context::createKernel(const uint32_t* spirv, size_t bytes, uint32_t bindi
     Kernel k;
     k.bindings = bindings;
     k.pushBytes = pushBytes;
-    VkShaderModuleCreateInfo si{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+    VkShaderModuleCreateInfo si{};
+    si.sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO;
     si.codeSize = bytes;
     si.pCode = spirv;
     check(mApi.vkCreateShaderModule(mDevice, &si, nullptr, &k.module), "creating a shader module");
@@ -433,18 +451,21 @@ Kernel Context::createKernel(const uint32_t* spirv, size_t bytes, uint32_t bindi
         b[i].descriptorCount = 1;
         b[i].stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
     }
-    VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    VkDescriptorSetLayoutCreateInfo li{};
+    li.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO;
     li.bindingCount = bindings;
     li.pBindings = b.data();
     check(mApi.vkCreateDescriptorSetLayout(mDevice, &li, nullptr, &k.setLayout), "creating a descriptor set layout");
     VkPushConstantRange pr{VK_SHADER_STAGE_COMPUTE_BIT, 0, pushBytes};
-    VkPipelineLayoutCreateInfo pi{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+    VkPipelineLayoutCreateInfo pi{};
+    pi.sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO;
     pi.setLayoutCount = 1;
     pi.pSetLayouts = &k.setLayout;
     pi.pushConstantRangeCount = pushBytes ? 1 : 0;
     pi.pPushConstantRanges = &pr;
     check(mApi.vkCreatePipelineLayout(mDevice, &pi, nullptr, &k.layout), "creating a pipeline layout");
-    VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    VkComputePipelineCreateInfo ci{};
+    ci.sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO;
     ci.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
     ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
     ci.stage.module = k.module;
@@ -468,19 +489,23 @@ void Context::destroy(Kernel& k)
 Submission::Submission(Context& ctx, uint32_t maxSets, uint32_t maxBuffers) : mCtx(ctx)
 {
     const Api& api = ctx.api();
-    VkCommandPoolCreateInfo pi{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+    VkCommandPoolCreateInfo pi{};
+    pi.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
     pi.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
     pi.queueFamilyIndex = ctx.queueFamily();
     ctx.check(api.vkCreateCommandPool(ctx.device(), &pi, nullptr, &mPool), "creating a command pool");
-    VkCommandBufferAllocateInfo ai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    VkCommandBufferAllocateInfo ai{};
+    ai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
     ai.commandPool = mPool;
     ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
     ai.commandBufferCount = 1;
     ctx.check(api.vkAllocateCommandBuffers(ctx.device(), &ai, &mCmd), "allocating a command buffer");
-    VkFenceCreateInfo fi{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    VkFenceCreateInfo fi{};
+    fi.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
     ctx.check(api.vkCreateFence(ctx.device(), &fi, nullptr, &mFence), "creating a fence");
     VkDescriptorPoolSize ps{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, maxBuffers};
-    VkDescriptorPoolCreateInfo di{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+    VkDescriptorPoolCreateInfo di{};
+    di.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
     di.maxSets = maxSets;
     di.poolSizeCount = 1;
     di.pPoolSizes = &ps;
@@ -501,7 +526,9 @@ void Submission::begin()
     const Api& api = mCtx.api();
     mCtx.check(api.vkResetCommandBuffer(mCmd, 0), "resetting a command buffer");
     mCtx.check(api.vkResetDescriptorPool(mCtx.device(), mDescriptors, 0), "resetting a descriptor pool");
-    VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    mLastSet = VK_NULL_HANDLE;
+    VkCommandBufferBeginInfo bi{};
+    bi.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
     bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
     mCtx.check(api.vkBeginCommandBuffer(mCmd, &bi), "recording commands");
 }
@@ -513,11 +540,18 @@ void Submission::copy(const Buffer& src, const Buffer& dst, VkDeviceSize bytes)
     mCtx.api().vkCmdCopyBuffer(mCmd, src.buffer, dst.buffer, 1, &c);
 }
 
+void Submission::zero(const Buffer& b, VkDeviceSize bytes)
+{
+    if (bytes) mCtx.api().vkCmdFillBuffer(mCmd, b.buffer, 0, bytes, 0u);
+}
+
 void Submission::barrier()
 {
-    VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    VkMemoryBarrier mb{};
+    mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
     mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_WRITE_BIT;
-    mb.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_HOST_READ_BIT;
+    mb.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_READ_BIT |
+                       VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_HOST_READ_BIT;
     const VkPipelineStageFlags stages = VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT;
     mCtx.api().vkCmdPipelineBarrier(mCmd, stages, stages | VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &mb, 0, nullptr, 0, nullptr);
 }
@@ -526,7 +560,17 @@ void Submission::dispatch(const Kernel& k, const std::vector<const Buffer*>& buf
                           uint32_t gy)
 {
     const Api& api = mCtx.api();
-    VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    std::vector<VkBuffer> handles(buffers.size());
+    for (size_t i = 0; i < buffers.size(); ++i) handles[i] = buffers[i]->buffer;
+    if (mLastSet != VK_NULL_HANDLE && mLastPipeline == k.pipeline && mLastBuffers == handles) {
+        api.vkCmdBindPipeline(mCmd, VK_PIPELINE_BIND_POINT_COMPUTE, k.pipeline);
+        api.vkCmdBindDescriptorSets(mCmd, VK_PIPELINE_BIND_POINT_COMPUTE, k.layout, 0, 1, &mLastSet, 0, nullptr);
+        if (k.pushBytes) api.vkCmdPushConstants(mCmd, k.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, k.pushBytes, push);
+        if (gx && gy) api.vkCmdDispatch(mCmd, gx, gy, 1);
+        return;
+    }
+    VkDescriptorSetAllocateInfo ai{};
+    ai.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO;
     ai.descriptorPool = mDescriptors;
     ai.descriptorSetCount = 1;
     ai.pSetLayouts = &k.setLayout;
@@ -535,8 +579,11 @@ void Submission::dispatch(const Kernel& k, const std::vector<const Buffer*>& buf
     std::vector<VkDescriptorBufferInfo> infos(buffers.size());
     std::vector<VkWriteDescriptorSet> writes(buffers.size());
     for (size_t i = 0; i < buffers.size(); ++i) {
-        infos[i] = VkDescriptorBufferInfo{buffers[i]->buffer, 0, VK_WHOLE_SIZE};
-        writes[i] = VkWriteDescriptorSet{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+        // the buffer may be larger than its data (grown by a quarter): bind at most what the
+        // device can address (the callers check that their data fits)
+        infos[i] = VkDescriptorBufferInfo{buffers[i]->buffer, 0, std::min<VkDeviceSize>(buffers[i]->size, mCtx.maxBufferRange())};
+        writes[i] = VkWriteDescriptorSet{};
+        writes[i].sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
         writes[i].dstSet = set;
         writes[i].dstBinding = uint32_t(i);
         writes[i].descriptorCount = 1;
@@ -548,6 +595,9 @@ void Submission::dispatch(const Kernel& k, const std::vector<const Buffer*>& buf
     api.vkCmdBindDescriptorSets(mCmd, VK_PIPELINE_BIND_POINT_COMPUTE, k.layout, 0, 1, &set, 0, nullptr);
     if (k.pushBytes) api.vkCmdPushConstants(mCmd, k.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, k.pushBytes, push);
     if (gx && gy) api.vkCmdDispatch(mCmd, gx, gy, 1);
+    mLastSet = set;
+    mLastPipeline = k.pipeline;
+    mLastBuffers = std::move(handles);
 }
 
 void Submission::submit()
@@ -555,7 +605,8 @@ void Submission::submit()
     const Api& api = mCtx.api();
     mCtx.check(api.vkEndCommandBuffer(mCmd), "recording commands");
     mCtx.check(api.vkResetFences(mCtx.device(), 1, &mFence), "resetting a fence");
-    VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    VkSubmitInfo si{};
+    si.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
     si.commandBufferCount = 1;
     si.pCommandBuffers = &mCmd;
     std::lock_guard<std::mutex> lock(mCtx.queueMutex());

@@ -109,6 +109,11 @@ public:
     Kernel createKernel(const uint32_t* spirv, size_t bytes, uint32_t bindings, uint32_t pushBytes);
     void destroy(Kernel& k);
 
+    /// The largest storage buffer a kernel can address (maxStorageBufferRange: 128 MiB on
+    /// lavapipe, 4 GiB on NVIDIA).
+    uint64_t maxBufferRange() const { return mLimits.maxStorageBufferRange; }
+    /// Throws DeviceError when `bytes` do not fit one storage buffer of this device.
+    void requireRange(uint64_t bytes, const char* what) const;
     /// Throws DeviceError naming the device and `what` when r is not VK_SUCCESS.
     void check(VkResult r, const char* what) const;
 
@@ -148,6 +153,8 @@ public:
     void begin();
     /// Copies `bytes` from src to dst (both at offset 0).
     void copy(const Buffer& src, const Buffer& dst, VkDeviceSize bytes);
+    /// Sets the first `bytes` (a multiple of 4) of b to zero.
+    void zero(const Buffer& b, VkDeviceSize bytes);
     /// Orders earlier transfers and dispatches before later ones (compute and transfer stages).
     void barrier();
     /// Binds `buffers` to bindings 0..n-1 and dispatches gx × gy workgroups.
@@ -167,6 +174,10 @@ private:
     VkFence mFence = VK_NULL_HANDLE;
     VkDescriptorPool mDescriptors = VK_NULL_HANDLE;
     bool mPending = false;
+    // the last dispatch's descriptor set, reused while kernel and buffers repeat
+    VkDescriptorSet mLastSet = VK_NULL_HANDLE;
+    VkPipeline mLastPipeline = VK_NULL_HANDLE;
+    std::vector<VkBuffer> mLastBuffers;
 };
 
 } // namespace levelforge::gpu_internal

@@ -9,6 +9,7 @@
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/MeshValidation.h>
 #include <levelforge/core/Metadata.h>
+#include <levelforge/gpu/VulkanSlabBackend.h>
 #include <levelforge/io/VdbIO.h>
 #include <levelforge/levelset/SdfToFog.h>
 #include <levelforge/mesh/AttributeTransfer.h>
@@ -21,6 +22,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <memory>
 #include <cmath>
 #include <sstream>
 
@@ -296,7 +298,37 @@ MeshToSdfGrids run(const TriangleMesh& inputMesh, const MeshToSdfOptions& o, Mes
         so.shell = o.shell;
         so.coverage = o.coverage;
         so.conservative = o.conservative;
-        grid = meshToLevelSetScan(mesh, so, &stats.scan);
+        // the slabs on a Vulkan device: always with Vulkan, with Auto on a discrete GPU
+        std::unique_ptr<VulkanSlabBackend> device;
+        std::string note;
+        if (o.device == ComputeDevice::Vulkan) {
+            device = std::make_unique<VulkanSlabBackend>(o.deviceMemoryBudget);
+        } else if (o.device == ComputeDevice::Auto) {
+            static const bool discrete = [] {
+                for (const VulkanDeviceInfo& d : listVulkanDevices().devices)
+                    if (d.chosen && d.type == "discrete") return true;
+                return false;
+            }();
+            if (discrete) {
+                try {
+                    device = std::make_unique<VulkanSlabBackend>(o.deviceMemoryBudget);
+                } catch (const DeviceError& e) {
+                    note = std::string("device auto: ") + e.what() + "; the CPU was used";
+                }
+            }
+        }
+        so.backend = device.get();
+        try {
+            grid = meshToLevelSetScan(mesh, so, &stats.scan);
+        } catch (const DeviceError& e) {
+            if (o.device != ComputeDevice::Auto) throw;
+            note = std::string("device auto: ") + e.what() + "; the CPU was used";
+            so.backend = nullptr;
+            device.reset();
+            grid = meshToLevelSetScan(mesh, so, &stats.scan);
+        }
+        stats.scan.device = device ? "vulkan: " + device->deviceName() : "cpu";
+        stats.scan.deviceNote = note;
     } else {
         MeshToLevelSetOptions mo;
         static_cast<GridSpec&>(mo) = band;

@@ -3,6 +3,8 @@
 #include <levelforge/scan/DenseSlab.h>
 #include <levelforge/core/TriangleDistance.h>
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -30,6 +32,13 @@ void DenseSlab::reset(const openvdb::CoordBBox& b)
     dist.assign(n, std::numeric_limits<double>::infinity());
     tri.assign(n, kNone);
     rasterized = 0;
+}
+
+void SlabBackend::fillBatch(const SlabJob* jobs, size_t n, const SlabTriangles& tris) const
+{
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) fill(*jobs[i].slab, jobs[i].items, jobs[i].count, tris);
+    });
 }
 
 bool crossSectionSpan(const CrossSection& cs, double y, double tol, double& xl, double& xr)

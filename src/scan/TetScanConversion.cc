@@ -350,41 +350,56 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
             ts = Clock::now();
             std::vector<std::vector<std::unique_ptr<FloatLeaf>>> leaves(ng); // owned until added
             std::vector<uint64_t> raster(ng, 0), activeCount(ng, 0);
-            tbb::parallel_for(tbb::blocked_range<size_t>(0, ng, 1), [&](const tbb::blocked_range<size_t>& r) {
-                DenseSlab slab;
-                std::vector<CrossSection> cs;
-                for (size_t g = r.begin(); g != r.end(); ++g) {
-                    progress_internal::check(interrupter);
+            // slabs go to the backend in batches (a device backend dispatches a batch at once)
+            const size_t batch = std::max<size_t>(1, backend.preferredBatch());
+            std::vector<DenseSlab> slabs(std::min(batch, ng));
+            std::vector<CrossSection> batchItems;
+            std::vector<SlabJob> jobs;
+            for (size_t g0 = 0; g0 < ng; g0 += batch) {
+                progress_internal::check(interrupter);
+                const size_t g1 = std::min(ng, g0 + batch);
+                batchItems.clear();
+                jobs.clear();
+                for (size_t g = g0; g < g1; ++g) {
                     const uint64_t key = items[groups[g]].key;
                     const int tx = int(int64_t(key >> 32) - (1 << 30)), ty = int(int64_t(key & 0xffffffffu) - (1 << 30));
-                    const Coord lo(tx * W, ty * W, z0), hi(tx * W + W - 1, ty * W + W - 1, z1);
-                    slab.reset(openvdb::CoordBBox(lo, hi));
-                    cs.clear();
-                    for (size_t i = groups[g]; i < groups[g + 1]; ++i) cs.push_back(items[i].cs);
-                    backend.fill(slab, cs.data(), cs.size(), tris);
-                    raster[g] = slab.rasterized;
-                    // scatter: one leaf per 8^3 block of the slab
-                    for (int lx = lo.x(); lx <= hi.x(); lx += 8)
-                        for (int ly = lo.y(); ly <= hi.y(); ly += 8)
-                            for (int lz = lo.z(); lz <= hi.z(); lz += 8) {
-                                std::unique_ptr<FloatLeaf> leaf;
-                                for (int dx = 0; dx < 8; ++dx)
-                                    for (int dy = 0; dy < 8; ++dy)
-                                        for (int dz = 0; dz < 8; ++dz) {
-                                            const Coord c(lx + dx, ly + dy, lz + dz);
-                                            const size_t idx = slab.index(c);
-                                            if (slab.tri[idx] == DenseSlab::kNone) continue;
-                                            const double v = slab.dist[idx] / h;
-                                            if (!(v < extW && v > -intW)) continue;
-                                            if (!leaf) leaf = std::make_unique<FloatLeaf>(Coord(lx, ly, lz), bg, false);
-                                            leaf->setValueOn(c, float(slab.dist[idx]));
-                                            ++activeCount[g];
-                                        }
-                                // inactive voxels of the leaf get +/- background from the flood fill
-                                if (leaf) leaves[g].push_back(std::move(leaf));
-                            }
+                    slabs[g - g0].reset(openvdb::CoordBBox(Coord(tx * W, ty * W, z0), Coord(tx * W + W - 1, ty * W + W - 1, z1)));
+                    for (size_t i = groups[g]; i < groups[g + 1]; ++i) batchItems.push_back(items[i].cs);
                 }
-            });
+                for (size_t g = g0, at = 0; g < g1; ++g) {
+                    const size_t n = groups[g + 1] - groups[g];
+                    jobs.push_back({&slabs[g - g0], batchItems.data() + at, n});
+                    at += n;
+                }
+                backend.fillBatch(jobs.data(), jobs.size(), tris);
+                // scatter: one leaf per 8^3 block of the slab
+                tbb::parallel_for(tbb::blocked_range<size_t>(g0, g1, 1), [&](const tbb::blocked_range<size_t>& r) {
+                    for (size_t g = r.begin(); g != r.end(); ++g) {
+                        const DenseSlab& slab = slabs[g - g0];
+                        raster[g] = slab.rasterized;
+                        const Coord lo = slab.box.min(), hi = slab.box.max();
+                        for (int lx = lo.x(); lx <= hi.x(); lx += 8)
+                            for (int ly = lo.y(); ly <= hi.y(); ly += 8)
+                                for (int lz = lo.z(); lz <= hi.z(); lz += 8) {
+                                    std::unique_ptr<FloatLeaf> leaf;
+                                    for (int dx = 0; dx < 8; ++dx)
+                                        for (int dy = 0; dy < 8; ++dy)
+                                            for (int dz = 0; dz < 8; ++dz) {
+                                                const Coord c(lx + dx, ly + dy, lz + dz);
+                                                const size_t idx = slab.index(c);
+                                                if (slab.tri[idx] == DenseSlab::kNone) continue;
+                                                const double v = slab.dist[idx] / h;
+                                                if (!(v < extW && v > -intW)) continue;
+                                                if (!leaf) leaf = std::make_unique<FloatLeaf>(Coord(lx, ly, lz), bg, false);
+                                                leaf->setValueOn(c, float(slab.dist[idx]));
+                                                ++activeCount[g];
+                                            }
+                                    // inactive voxels of the leaf get +/- background from the flood fill
+                                    if (leaf) leaves[g].push_back(std::move(leaf));
+                                }
+                    }
+                });
+            }
             for (size_t g = 0; g < ng; ++g) {
                 stats.voxelsRasterized += raster[g];
                 stats.activeVoxels += activeCount[g];

@@ -9,6 +9,7 @@
 #include <levelforge/core/Exceptions.h>
 
 #include "detail/LowerEnvelope.h"
+#include "gpu/VulkanExactDistanceTransform.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -17,8 +18,11 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <mutex>
 #include <sstream>
+#include <string>
 
 namespace levelforge {
 
@@ -61,11 +65,74 @@ struct Envelope
     }
 };
 
+/// Device Auto: a discrete Vulkan GPU (or the device LEVELFORGE_VULKAN_DEVICE picks) for a volume
+/// of at least minVoxels samples; `note` says why not when a large volume stays on the CPU.
+bool autoUsesDevice(uint64_t voxels, uint64_t minVoxels, std::string& note)
+{
+    if (voxels < minVoxels) return false; // small work: the CPU, no note
+    const char* env = std::getenv("LEVELFORGE_VULKAN_DEVICE");
+    if (env && std::string(env) == "none") {
+        note = "device auto: every Vulkan device is hidden (LEVELFORGE_VULKAN_DEVICE=none); the CPU was used";
+        return false;
+    }
+    if (env && *env) return true; // a device picked by name or index: auto uses it, whatever its type
+    static std::once_flag once;
+    static bool discrete = false;
+    static std::string why;
+    std::call_once(once, [] {
+        const VulkanDeviceList list = listVulkanDevices();
+        for (const VulkanDeviceInfo& d : list.devices)
+            if (d.chosen && d.type == "discrete") discrete = true;
+        if (!discrete) {
+            why = list.problem.empty() ? "no discrete Vulkan GPU" : list.problem;
+            for (const VulkanDeviceInfo& d : list.devices)
+                if (d.chosen) why = "the only usable Vulkan device, " + d.name + ", is not a discrete GPU";
+        }
+    });
+    if (!discrete) note = "device auto: " + why + "; the CPU was used";
+    return discrete;
+}
+
+ScalarVolume cpuTransform(const MaskVolume& features, const ExactTransformOptions& options);
+
 } // namespace
 
-ScalarVolume exactDistanceTransform(const MaskVolume& features, const ExactTransformOptions& options)
+ScalarVolume exactDistanceTransform(const MaskVolume& features, const ExactTransformOptions& options,
+                                    ExactTransformStats* statsOut)
 {
     requireValidVolume(features, "exactDistanceTransform");
+    ExactTransformStats stats;
+    const bool device = options.device == ComputeDevice::Vulkan ||
+                        (options.device == ComputeDevice::Auto &&
+                         autoUsesDevice(features.voxelCount(), options.deviceMinVoxels, stats.deviceNote));
+    if (device) {
+        auto* interrupter = options.interrupter;
+        if (interrupter) interrupter->start("exact distance transform");
+        try {
+            const uint64_t budget = gpu_internal::edtDeviceBudget(options.deviceMemoryBudget);
+            ScalarVolume out = gpu_internal::deviceExactDistanceTransform(features, budget, interrupter, stats);
+            if (interrupter) interrupter->end();
+            if (statsOut) *statsOut = stats;
+            return out;
+        } catch (const DeviceError& e) {
+            if (interrupter) interrupter->end();
+            if (options.device == ComputeDevice::Vulkan) throw;
+            stats = ExactTransformStats();
+            stats.deviceNote = std::string("device auto: ") + e.what() + "; the CPU was used";
+        } catch (...) {
+            if (interrupter) interrupter->end();
+            throw;
+        }
+    }
+    ScalarVolume out = cpuTransform(features, options);
+    if (statsOut) *statsOut = stats;
+    return out;
+}
+
+namespace {
+
+ScalarVolume cpuTransform(const MaskVolume& features, const ExactTransformOptions& options)
+{
     const int nx = features.dims.x(), ny = features.dims.y(), nz = features.dims.z();
     const size_t nxy = size_t(nx) * size_t(ny);
     const double sx2 = features.spacing[0] * features.spacing[0];
@@ -136,6 +203,8 @@ ScalarVolume exactDistanceTransform(const MaskVolume& features, const ExactTrans
     if (interrupter) interrupter->end();
     return out;
 }
+
+} // namespace
 
 ScalarVolume bruteForceDistanceTransform(const MaskVolume& features)
 {

@@ -125,6 +125,11 @@ ScalarVolume volumeSignedDistance(const ScalarVolume& field, const VolumeToLevel
 {
     checkOptions(field, o);
     VolumeToLevelSetStats stats;
+    if (o.device == ComputeDevice::Vulkan && (o.subvoxel || o.method != VolumeDistanceMethod::Exact))
+        stats.deviceNote = std::string("device vulkan: only the exact transform of binary features (method exact "
+                                       "without the sub-voxel shell) runs on a device; ") +
+                           volumeDistanceMethodName(o.method) + (o.subvoxel ? " (sub-voxel)" : "") +
+                           " ran on the CPU";
     auto t0 = Clock::now();
     ScalarVolume result;
     SubvoxelShellOptions so;
@@ -193,7 +198,15 @@ ScalarVolume volumeSignedDistance(const ScalarVolume& field, const VolumeToLevel
         if (o.method == VolumeDistanceMethod::Exact) {
             ExactTransformOptions eo;
             eo.interrupter = o.interrupter;
-            unsignedField = exactDistanceTransform(features, eo);
+            eo.device = o.device;
+            eo.deviceMemoryBudget = o.deviceMemoryBudget;
+            ExactTransformStats es;
+            unsignedField = exactDistanceTransform(features, eo, &es);
+            stats.device = es.device;
+            stats.deviceNote = es.deviceNote;
+            stats.secondsDeviceTransfer = es.secondsTransfer;
+            stats.secondsDeviceCompute = es.secondsCompute;
+            stats.devicePeakBytes = es.peakDeviceBytes;
         } else if (isChamfer(o.method)) {
             ChamferOptions co;
             co.interrupter = o.interrupter;

@@ -104,13 +104,32 @@ struct DenseSlab
 /// @return true when the row meets the polygon (then xl <= xr)
 bool crossSectionSpan(const CrossSection& cs, double y, double tol, double& xl, double& xr);
 
+/// @brief One slab of a batch handed to SlabBackend::fillBatch().
+struct SlabJob
+{
+    DenseSlab* slab = nullptr;          ///< reset to its box
+    const CrossSection* items = nullptr; ///< the cross-sections touching it (index space)
+    size_t count = 0;                    ///< number of items
+};
+
 /// @brief Fills dense slabs.
 ///
-/// fill() is called concurrently for different slabs and must be thread-safe.
+/// fill() is called concurrently for different slabs and must be thread-safe. The scan
+/// conversion hands slabs over in batches of up to preferredBatch() through fillBatch(); a
+/// backend that dispatches to a device overrides both.
 class SlabBackend
 {
 public:
     virtual ~SlabBackend() = default;
+    /// @brief Fills every slab of a batch, each by the contract of fill(). The default calls
+    ///        fill() for each job, in parallel (TBB).
+    /// @param[in,out] jobs  the slabs (each reset to its box) and their items
+    /// @param[in]     n     number of jobs
+    /// @param[in]     tris  corners and pseudonormals of the triangles the items refer to (the
+    ///                      same object for every call of one conversion)
+    virtual void fillBatch(const SlabJob* jobs, size_t n, const SlabTriangles& tris) const;
+    /// @brief How many slabs the caller should hand to fillBatch() at once (default 64).
+    virtual size_t preferredBatch() const { return 64; }
     /// @brief A short name of the backend, for messages and statistics (e.g. "cpu").
     virtual const char* name() const = 0;
     /// @brief Fills @p slab by the backend contract (see the file comment).

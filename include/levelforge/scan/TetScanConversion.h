@@ -87,6 +87,10 @@ struct TetScanStats
     uint64_t voxelsRasterized = 0;  ///< (voxel, polygon) evaluations
     uint64_t activeVoxels = 0;
     double secondsShell = 0, secondsSort = 0, secondsSweep = 0, secondsFill = 0, secondsFinish = 0;
+    /// The slab backend (set by the pipeline, meshToSdf()): "cpu" or "vulkan: <device>"; why
+    /// the CPU when `auto` fell back.
+    std::string device = "cpu";
+    std::string deviceNote;
     /// @brief Tetrahedra per non-degenerate face.
     /// @return tetrahedra / triangles, or 0 when there are no triangles
     double tetrahedraPerFace() const { return triangles ? double(tetrahedra) / double(triangles) : 0.0; }

@@ -9,6 +9,9 @@
 /// min over x of (sx^2 dx^2 + f))), and each 1-D step is the lower envelope of parabolas, O(n)
 /// per line. Anisotropic spacing enters as the parabola weight s^2 of each axis. Lines are
 /// independent and run in parallel with TBB (results do not depend on the thread count).
+/// The passes also run on a Vulkan device (ExactTransformOptions::device; the GPU twin is
+/// src/gpu/shaders/edt_lines.comp, one invocation per line, the same double arithmetic without
+/// fused multiply-add, the same float rounding between passes): bit-identical distances.
 /// EXACT: the distance, in world units, from every voxel centre to the nearest feature voxel
 /// centre, up to single-precision rounding (the envelope is evaluated in double precision, the
 /// partial squared distances between axes are stored as float). This is the "true Euclidean
@@ -28,12 +31,14 @@
 #pragma once
 
 #include <levelforge/core/DenseVolume.h>
+#include <levelforge/gpu/VulkanDevices.h>
 #include <levelforge/volume/ChamferDistanceTransform.h>
 #include <levelforge/volume/VectorDistanceTransform.h>
 #include <levelforge/volume/VolumeFeatures.h>
 
 #include <openvdb/util/NullInterrupter.h>
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -44,17 +49,46 @@ struct ExactTransformOptions
 {
     /// Optional interruption (checked between the three axis passes and per slab); not owned.
     openvdb::util::NullInterrupter* interrupter = nullptr;
+    /// Where the transform runs (gpu/VulkanDevices.h). The distances are bit-identical on every
+    /// device. Auto: a discrete Vulkan GPU (or the device LEVELFORGE_VULKAN_DEVICE picks) when
+    /// the volume has at least deviceMinVoxels samples, else the CPU (stats.deviceNote says why);
+    /// a device error under Auto falls back to the CPU.
+    ComputeDevice device = ComputeDevice::Cpu;
+    /// Device memory (bytes) the Vulkan transform may hold; 0: half the device's memory, at
+    /// most 4 GiB. A volume larger than the budget is processed in slabs of z-slices (x and y
+    /// passes) and of y-rows (z pass); at least one slice, row and line always go.
+    uint64_t deviceMemoryBudget = 0;
+    /// Auto: smaller volumes stay on the CPU (the transfers would cost more than they save).
+    uint64_t deviceMinVoxels = uint64_t(1) << 24;
+};
+
+/// What exactDistanceTransform() did.
+struct ExactTransformStats
+{
+    std::string device = "cpu";  ///< "cpu" or "vulkan: <name> (<type>)"
+    std::string deviceNote;      ///< device auto: why the CPU was used (empty otherwise)
+    uint64_t slabs = 0;          ///< device: slabs of z-slices plus slabs of y-rows
+    uint64_t dispatches = 0;     ///< device: kernel dispatches (one per pass per batch of lines)
+    uint64_t submissions = 0;    ///< device: command-buffer submissions (copies and kernels)
+    uint64_t bytesUp = 0, bytesDown = 0; ///< device: host-to-device and device-to-host bytes
+    uint64_t peakDeviceBytes = 0;        ///< device: device memory held at most
+    double secondsTransfer = 0.0; ///< device: host copies into and out of device-visible memory and copy submissions
+    double secondsCompute = 0.0;  ///< device: waiting for the kernels
 };
 
 /// @brief Exact Euclidean distance from every voxel centre to the nearest feature voxel centre,
-///        in linear time.
-/// @param[in] features  feature voxels (mask != 0)
-/// @param[in] options   interrupter
+///        in linear time, on the CPU or a Vulkan device.
+/// @param[in]  features  feature voxels (mask != 0)
+/// @param[in]  options   interrupter, device, device-memory budget
+/// @param[out] stats     optional: the device used and its transfers and times
 /// @return distances in world units (+inf everywhere when there is no feature); same dims,
-///         spacing, origin.
+///         spacing, origin. Bit-identical whichever device computed them.
 /// @throws InvalidArgumentError (empty, spacing <= 0 or NaN, size mismatch);
+/// @throws DeviceError (device Vulkan: no usable device, out of device memory, ...; Auto falls
+///         back to the CPU instead);
 /// @throws InterruptedError.
-ScalarVolume exactDistanceTransform(const MaskVolume& features, const ExactTransformOptions& options = {});
+ScalarVolume exactDistanceTransform(const MaskVolume& features, const ExactTransformOptions& options = {},
+                                    ExactTransformStats* stats = nullptr);
 
 /// @brief The same distances by brute force over the feature voxels (O(N·F)); for small tests.
 /// @param[in] features  feature voxels (mask != 0)

@@ -31,11 +31,13 @@
 
 #include <levelforge/core/DenseVolume.h>
 #include <levelforge/core/GridSpec.h>
+#include <levelforge/gpu/VulkanDevices.h>
 #include <levelforge/volume/SubvoxelShell.h>
 
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
 
+#include <cstdint>
 #include <string>
 
 namespace levelforge {
@@ -80,6 +82,12 @@ struct VolumeToLevelSetOptions : GridSpec
     bool subvoxel = true;
     /// Keep every inside voxel active (interiorWidth is then ignored).
     bool fillInterior = false;
+    /// Where the exact transform of binary features (method Exact, subvoxel false) runs:
+    /// ExactTransformOptions::device (bit-identical on every device). The other methods run on
+    /// the CPU; with Vulkan, stats.deviceNote then says so.
+    ComputeDevice device = ComputeDevice::Cpu;
+    /// ExactTransformOptions::deviceMemoryBudget (bytes; 0: automatic).
+    uint64_t deviceMemoryBudget = 0;
 };
 
 /// What a volume conversion did.
@@ -91,6 +99,11 @@ struct VolumeToLevelSetStats
     double secondsClassify = 0;     ///< shell or features
     double secondsTransform = 0;    ///< the distance transform
     double secondsBuild = 0;        ///< dense field -> sparse level set
+    std::string device = "cpu";     ///< where the transform ran: "cpu" or "vulkan: <name> (<type>)"
+    std::string deviceNote;         ///< why a device asked for was not used (empty otherwise)
+    double secondsDeviceTransfer = 0; ///< device: host copies and copy submissions
+    double secondsDeviceCompute = 0;  ///< device: waiting for the kernels
+    uint64_t devicePeakBytes = 0;     ///< device: device memory held at most
 };
 
 /// @brief The dense signed distance field of the whole volume (see the file comment).

@@ -16,8 +16,8 @@ layout(local_size_x = 128) in;
 layout(std430, binding = 0) readonly buffer Corners { double corners[]; };  // 9 per triangle
 layout(std430, binding = 1) readonly buffer Leaves { int leaves[]; };        // 8 per leaf: x y z first count - - -
 layout(std430, binding = 2) readonly buffer Candidates { uint cands[]; };   // ascending per leaf
-layout(std430, binding = 3) writeonly buffer OutTri { uint outTri[]; };     // 512 per leaf, ~0u: none
-layout(std430, binding = 4) writeonly buffer OutD2 { double outD2[]; };     // 512 per leaf, see main()
+layout(std430, binding = 3) buffer OutTri { uint outTri[]; };     // 512 per leaf, ~0u: none
+layout(std430, binding = 4) buffer OutD2 { double outD2[]; };     // 512 per leaf, see main()
 layout(std430, binding = 5) readonly buffer TriNormals { double triN[]; };  // 12 per triangle: face, e01, e12, e20
 layout(std430, binding = 6) readonly buffer VertexNormals { double vertN[]; }; // 3 per vertex
 layout(std430, binding = 7) readonly buffer TriVertices { uint triV[]; };   // 3 per triangle
@@ -28,7 +28,14 @@ layout(push_constant) uniform Push
     uint leafCount;  // leaves in this batch
     uint groupsX;    // workgroups along x (leaf = y * groupsX + x)
     uint signs;      // 1: pseudonormal signs in outD2 (bindings 5-7 hold the normals)
+    uint candBegin;  // this dispatch's window of each leaf's candidates: [candBegin, candEnd);
+    uint candEnd;    // later windows start from the state the earlier ones wrote
+    uint last;       // 1: the last window (write the final, signed result)
 } pc;
+
+// Windows: CPU implementations (lavapipe) cut loops after 65535 iterations per invocation, so a
+// leaf with many candidates is searched in several dispatches; a GPU gets one window. Every
+// loop below runs at most once per candidate (the four voxels of an invocation are unrolled).
 
 const uint kChunk = 128u;
 shared double sCorners[kChunk * 9u];
@@ -113,6 +120,43 @@ dvec3 cornerOf(uint t, uint k)
     return dvec3(corners[o], corners[o + 1u], corners[o + 2u]);
 }
 
+void closer(dvec3 p, dvec3 a, dvec3 b, dvec3 c, uint t, inout double best, inout uint bestTri)
+{
+    dvec3 q;
+    uint f;
+    const double d = closestPoint(p, a, b, c, q, f);
+    if (d < best) { // candidates ascend: ties keep the smaller index
+        best = d;
+        bestTri = t;
+    }
+}
+
+// The final value of one voxel: its squared distance, negated (sign bit set, also for 0) where the
+// pseudonormal of the closest feature says inside: (p - q) . n < 0, as LazyPseudoNormals::isInside().
+double finalValue(dvec3 p, double best, uint t)
+{
+    if (t == 0xffffffffu || pc.signs != 1u) return best;
+    dvec3 q;
+    uint f;
+    const double d = closestPoint(p, cornerOf(t, 0u), cornerOf(t, 1u), cornerOf(t, 2u), q, f);
+    dvec3 n;
+    if (f == 0u || f >= 4u) {
+        const uint o = t * 12u + (f == 0u ? 0u : 3u * (f - 3u));
+        n = dvec3(triN[o], triN[o + 1u], triN[o + 2u]);
+    } else {
+        const uint o = triV[t * 3u + (f - 1u)] * 3u;
+        n = dvec3(vertN[o], vertN[o + 1u], vertN[o + 2u]);
+    }
+    precise dvec3 e = p - q;
+    precise double s = dot3(e, n);
+    return s < 0.0 ? -d : d;
+}
+
+dvec3 voxelCentre(ivec3 origin, uint v)
+{
+    return dvec3(origin + ivec3(int(v >> 6), int((v >> 3) & 7u), int(v & 7u))) + dvec3(0.5);
+}
+
 void main()
 {
     const uint leaf = gl_WorkGroupID.y * pc.groupsX + gl_WorkGroupID.x;
@@ -122,24 +166,26 @@ void main()
     const ivec3 origin = ivec3(leaves[base], leaves[base + 1], leaves[base + 2]);
     const uint first = uint(leaves[base + 3]);
     const uint count = uint(leaves[base + 4]);
-
-    dvec3 p[4];
-    double best[4];
-    uint bestTri[4];
-    for (uint k = 0u; k < 4u; ++k) {
-        const uint v = lid + 128u * k;
-        const ivec3 idx = origin + ivec3(int(v >> 6), int((v >> 3) & 7u), int(v & 7u));
-        p[k] = dvec3(idx) + dvec3(0.5);
-        best[k] = pc.limit2;
-        bestTri[k] = 0xffffffffu;
+    const uint o0 = leaf * 512u + lid, o1 = o0 + 128u, o2 = o0 + 256u, o3 = o0 + 384u;
+    const dvec3 p0 = voxelCentre(origin, lid), p1 = voxelCentre(origin, lid + 128u);
+    const dvec3 p2 = voxelCentre(origin, lid + 256u), p3 = voxelCentre(origin, lid + 384u);
+    double b0 = pc.limit2, b1 = pc.limit2, b2 = pc.limit2, b3 = pc.limit2;
+    uint t0 = 0xffffffffu, t1 = 0xffffffffu, t2 = 0xffffffffu, t3 = 0xffffffffu;
+    if (pc.candBegin > 0u) { // the state of the earlier windows
+        b0 = outD2[o0]; b1 = outD2[o1]; b2 = outD2[o2]; b3 = outD2[o3];
+        t0 = outTri[o0]; t1 = outTri[o1]; t2 = outTri[o2]; t3 = outTri[o3];
     }
-    for (uint c0 = 0u; c0 < count; c0 += kChunk) {
-        const uint n = min(kChunk, count - c0);
+    const uint begin = min(count, pc.candBegin), end = min(count, pc.candEnd);
+    for (uint c0 = begin; c0 < end; c0 += kChunk) {
+        const uint n = min(kChunk, end - c0);
         barrier();
         if (lid < n) {
             const uint t = cands[first + c0 + lid];
             sTri[lid] = t;
-            for (uint j = 0u; j < 9u; ++j) sCorners[lid * 9u + j] = corners[t * 9u + j];
+            const uint src = t * 9u, dst = lid * 9u;
+            sCorners[dst] = corners[src]; sCorners[dst + 1u] = corners[src + 1u]; sCorners[dst + 2u] = corners[src + 2u];
+            sCorners[dst + 3u] = corners[src + 3u]; sCorners[dst + 4u] = corners[src + 4u]; sCorners[dst + 5u] = corners[src + 5u];
+            sCorners[dst + 6u] = corners[src + 6u]; sCorners[dst + 7u] = corners[src + 7u]; sCorners[dst + 8u] = corners[src + 8u];
         }
         barrier();
         for (uint i = 0u; i < n; ++i) {
@@ -147,42 +193,18 @@ void main()
             const dvec3 a = dvec3(sCorners[o], sCorners[o + 1u], sCorners[o + 2u]);
             const dvec3 b = dvec3(sCorners[o + 3u], sCorners[o + 4u], sCorners[o + 5u]);
             const dvec3 c = dvec3(sCorners[o + 6u], sCorners[o + 7u], sCorners[o + 8u]);
-            for (uint k = 0u; k < 4u; ++k) {
-                dvec3 q;
-                uint f;
-                const double d = closestPoint(p[k], a, b, c, q, f);
-                if (d < best[k]) {
-                    best[k] = d;
-                    bestTri[k] = sTri[i];
-                }
-            }
+            const uint t = sTri[i];
+            closer(p0, a, b, c, t, b0, t0);
+            closer(p1, a, b, c, t, b1, t1);
+            closer(p2, a, b, c, t, b2, t2);
+            closer(p3, a, b, c, t, b3, t3);
         }
     }
-    // outD2: the closest triangle's squared distance, negated (sign bit set, also for 0) where
-    // the pseudonormal of its closest feature says inside: (p - q) . n < 0, as
-    // LazyPseudoNormals::isInside() decides it.
-    for (uint k = 0u; k < 4u; ++k) {
-        const uint v = lid + 128u * k;
-        const uint t = bestTri[k];
-        outTri[leaf * 512u + v] = t;
-        if (t == 0xffffffffu) continue;
-        double value = best[k];
-        if (pc.signs == 1u) {
-            dvec3 q;
-            uint f;
-            const double d = closestPoint(p[k], cornerOf(t, 0u), cornerOf(t, 1u), cornerOf(t, 2u), q, f);
-            dvec3 n;
-            if (f == 0u || f >= 4u) {
-                const uint o = t * 12u + (f == 0u ? 0u : 3u * (f - 3u));
-                n = dvec3(triN[o], triN[o + 1u], triN[o + 2u]);
-            } else {
-                const uint o = triV[t * 3u + (f - 1u)] * 3u;
-                n = dvec3(vertN[o], vertN[o + 1u], vertN[o + 2u]);
-            }
-            precise dvec3 e = p[k] - q;
-            precise double s = dot3(e, n);
-            value = s < 0.0 ? -d : d;
-        }
-        outD2[leaf * 512u + v] = value;
+    outTri[o0] = t0; outTri[o1] = t1; outTri[o2] = t2; outTri[o3] = t3;
+    if (pc.last == 1u) {
+        outD2[o0] = finalValue(p0, b0, t0); outD2[o1] = finalValue(p1, b1, t1);
+        outD2[o2] = finalValue(p2, b2, t2); outD2[o3] = finalValue(p3, b3, t3);
+    } else {
+        outD2[o0] = b0; outD2[o1] = b1; outD2[o2] = b2; outD2[o3] = b3;
     }
 }
