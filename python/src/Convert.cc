@@ -337,7 +337,7 @@ py::object meshToSdfPy(py::handle vertices, py::handle faces, std::optional<doub
                        double exteriorBand, double interiorBand, bool worldUnits, const std::string& expansion,
                        double exactBand, const std::string& method, const std::string& shell,
                        const std::string& shellCoverage, bool conservative, const std::string& sign,
-                       bool fillInterior, double windingAccuracy, uint64_t maxVoxels,
+                       bool fillInterior, double windingAccuracy, const std::string& device, uint64_t maxVoxels,
                        const std::string& gridName, py::object source, py::object fogGrid, py::object reference,
                        py::object primitiveIndexGrid, py::object attribute, py::object progress, bool returnStats)
 {
@@ -374,6 +374,7 @@ py::object meshToSdfPy(py::handle vertices, py::handle faces, std::optional<doub
     o.coverage = shellCoverageFromString(shellCoverage);
     o.conservative = conservative;
     applySignOptions(o, sign, fillInterior, windingAccuracy);
+    o.device = parseComputeDevice(device);
     if (!reference.is_none()) {
         // the CLI's --reference: its transform, and its band widths unless they were changed here
         const std::string refPath = toPath(reference);
@@ -495,10 +496,11 @@ ScalarVolume denseFromGrid(const openvdb::FloatGrid& grid, int padding, uint64_t
 
 py::object volumeToSdfPy(py::handle volume, py::handle spacing, py::handle origin, float iso, bool invert,
                          const std::string& method, bool subvoxel, double exteriorBand, double interiorBand,
-                         bool fillInterior, bool sparse, uint64_t maxVoxels, const std::string& gridName,
-                         py::object source, py::object progress, bool returnStats)
+                         bool fillInterior, bool sparse, const std::string& device, uint64_t maxVoxels,
+                         const std::string& gridName, py::object source, py::object progress, bool returnStats)
 {
     VolumeToLevelSetOptions opt;
+    opt.device = parseComputeDevice(device);
     opt.iso = iso;
     opt.insideBelow = invert;
     opt.method = volumeDistanceMethodFromName(method);
@@ -863,7 +865,8 @@ vertices, components, the Euler characteristic, 'warnings' (the lines the CLI pr
           py::arg("interior_band") = 3.0, py::arg("world_units") = false, py::arg("expansion") = "none",
           py::arg("exact_band") = 3.0, py::arg("method") = "chang", py::arg("shell") = "obb",
           py::arg("shell_coverage") = "complete", py::arg("conservative") = false, py::arg("sign") = "auto",
-          py::arg("fill_interior") = false, py::arg("winding_accuracy") = 2.0, py::arg("max_voxels") = kCliMaxVoxels, py::arg("grid_name") = "surface", py::arg("source") = py::none(),
+          py::arg("fill_interior") = false, py::arg("winding_accuracy") = 2.0, py::arg("device") = "auto",
+          py::arg("max_voxels") = kCliMaxVoxels, py::arg("grid_name") = "surface", py::arg("source") = py::none(),
           py::arg("fog_grid") = py::none(), py::arg("reference") = py::none(),
           py::arg("primitive_index_grid") = py::none(), py::arg("attribute") = py::none(),
           py::arg("progress") = py::none(), py::arg("return_stats") = false, R"doc(
@@ -891,6 +894,8 @@ sign: "auto" (default: pseudonormal for closed, consistently oriented meshes, wi
     class 'unknown'). fill_interior: every inside voxel active (exact in the band,
     -background deeper). winding_accuracy: the fast winding number's beta (> 1, default 2).
     (Available when the library has sign modes: levelforge.HAVE_SIGN_MODES.)
+device: "auto" (a discrete Vulkan GPU for large bands, else the CPU), "cpu" or "vulkan" (DeviceError
+    when there is no usable Vulkan device); the grid is bit-identical on every device (docs/gpu.md).
 max_voxels: refuse work whose voxel budget exceeds this (0: no limit), ResourceLimitError.
 grid_name: the grid name (default "surface"). source: the levelforge:source metadata and the
     prefix of error messages (default: a description of the arrays).
@@ -940,7 +945,8 @@ progress, return_stats, max_voxels: as in mesh_to_sdf.
           py::arg("origin") = py::make_tuple(0.0, 0.0, 0.0), py::kw_only(), py::arg("iso") = 0.0f,
           py::arg("invert") = false, py::arg("method") = "vcvdt8", py::arg("subvoxel") = false,
           py::arg("exterior_band") = 3.0, py::arg("interior_band") = 3.0, py::arg("fill_interior") = false,
-          py::arg("sparse") = false, py::arg("max_voxels") = kCliMaxVoxels, py::arg("grid_name") = "surface",
+          py::arg("sparse") = false, py::arg("device") = "auto", py::arg("max_voxels") = kCliMaxVoxels,
+          py::arg("grid_name") = "surface",
           py::arg("source") = py::none(), py::arg("progress") = py::none(), py::arg("return_stats") = false, R"doc(
 Scalar volume -> signed distance level set: `levelforge volume-to-sdf` (Satherley-Jones distance
 transforms; levelforge::volumeToLevelSet) with the operator's parameters and defaults.
@@ -957,6 +963,8 @@ method: "vcvdt8" (default), "vcvdt4", "evdt", "evdt-grid", "exact", or a chamfer
     binary only).
 subvoxel: seed the transform with exact closest points on the interpolated surface instead of
     binary feature voxels (default False, as the CLI's --subvoxel flag).
+device: where method="exact" runs: "auto" (a discrete Vulkan GPU for large volumes), "cpu" or
+    "vulkan"; bit-identical on every device.
 exterior_band, interior_band: half-widths kept, voxels of the smallest spacing (default 3);
     fill_interior keeps every inside voxel active.
 sparse: a Grid input converted on its own sparse topology (needs subvoxel=True, method
