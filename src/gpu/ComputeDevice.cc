@@ -5,6 +5,9 @@
 #include "gpu/VulkanExactDistanceTransform.h"
 #include "gpu/VulkanLeafDistance.h"
 
+#include <cstdlib>
+#include <mutex>
+
 namespace levelforge {
 
 const char* toString(ComputeDevice d)
@@ -23,6 +26,31 @@ ComputeDevice parseComputeDevice(const std::string& text)
     if (text == "vulkan") return ComputeDevice::Vulkan;
     if (text == "auto") return ComputeDevice::Auto;
     throw InvalidArgumentError("unknown device '" + text + "' (expected cpu, vulkan or auto)");
+}
+
+bool autoUsesVulkan(std::string& why)
+{
+    const char* env = std::getenv("LEVELFORGE_VULKAN_DEVICE");
+    if (env && std::string(env) == "none") {
+        why = "every Vulkan device is hidden (LEVELFORGE_VULKAN_DEVICE=none)";
+        return false;
+    }
+    if (env && *env) return true; // a device picked by name or index: auto uses it, whatever its type
+    static std::once_flag once;
+    static bool discrete = false;
+    static std::string reason;
+    std::call_once(once, [] {
+        const VulkanDeviceList list = listVulkanDevices();
+        for (const VulkanDeviceInfo& d : list.devices)
+            if (d.chosen && d.type == "discrete") discrete = true;
+        if (!discrete) {
+            reason = list.problem.empty() ? "no discrete Vulkan GPU" : list.problem;
+            for (const VulkanDeviceInfo& d : list.devices)
+                if (d.chosen) reason = "the only usable Vulkan device, " + d.name + ", is not a discrete GPU";
+        }
+    });
+    if (!discrete) why = reason;
+    return discrete;
 }
 
 #ifndef LEVELFORGE_HAVE_VULKAN

@@ -135,27 +135,10 @@ bool useDevice(const MeshToLevelSetOptions& o, size_t leaves, std::string& note)
     if (o.device == ComputeDevice::Cpu) return false;
     if (o.device == ComputeDevice::Vulkan) return true;
     if (leaves < o.deviceMinLeaves) return false; // small work: the CPU, no note
-    const char* env = std::getenv("LEVELFORGE_VULKAN_DEVICE");
-    if (env && std::string(env) == "none") {
-        note = "device auto: every Vulkan device is hidden (LEVELFORGE_VULKAN_DEVICE=none); the CPU was used";
-        return false;
-    }
-    if (env && *env) return true; // a device picked by name or index: auto uses it, whatever its type
-    static std::once_flag once;
-    static bool discrete = false;
-    static std::string why;
-    std::call_once(once, [] {
-        const VulkanDeviceList list = listVulkanDevices();
-        for (const VulkanDeviceInfo& d : list.devices)
-            if (d.chosen && d.type == "discrete") discrete = true;
-        if (!discrete) {
-            why = list.problem.empty() ? "no discrete Vulkan GPU" : list.problem;
-            for (const VulkanDeviceInfo& d : list.devices)
-                if (d.chosen) why = "the only usable Vulkan device, " + d.name + ", is not a discrete GPU";
-        }
-    });
-    if (!discrete) note = "device auto: " + why + "; the CPU was used";
-    return discrete;
+    std::string why;
+    if (autoUsesVulkan(why)) return true;
+    note = "device auto: " + why + "; the CPU was used";
+    return false;
 }
 
 void deviceDistances(const Context& ctx, const MeshToLevelSetOptions& o, const std::vector<Coord>& cand,

@@ -304,12 +304,8 @@ MeshToSdfGrids run(const TriangleMesh& inputMesh, const MeshToSdfOptions& o, Mes
         if (o.device == ComputeDevice::Vulkan) {
             device = std::make_unique<VulkanSlabBackend>(o.deviceMemoryBudget);
         } else if (o.device == ComputeDevice::Auto) {
-            static const bool discrete = [] {
-                for (const VulkanDeviceInfo& d : listVulkanDevices().devices)
-                    if (d.chosen && d.type == "discrete") return true;
-                return false;
-            }();
-            if (discrete) {
+            std::string why;
+            if (autoUsesVulkan(why)) {
                 try {
                     device = std::make_unique<VulkanSlabBackend>(o.deviceMemoryBudget);
                 } catch (const DeviceError& e) {

@@ -18,6 +18,8 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/util/NullInterrupter.h>
 
+#include "gpu/VulkanTestSupport.h"
+
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -31,29 +33,8 @@ using namespace levelforge;
 
 namespace {
 
-class VulkanEdtTest : public ::testing::Test
+class VulkanEdtTest : public levelforge_test::VulkanFixture
 {
-protected:
-    void SetUp() override
-    {
-        openvdb::initialize();
-        // every test is its own process (gtest_discover_tests): validation on before first use
-        if (std::filesystem::exists("/usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json"))
-            setenv("LEVELFORGE_VULKAN_VALIDATION", "1", 1);
-        unsetenv("LEVELFORGE_VULKAN_DEVICE");
-        const VulkanDeviceList list = listVulkanDevices();
-        bool usable = false;
-        for (const VulkanDeviceInfo& d : list.devices) usable = usable || d.chosen;
-        if (!usable) GTEST_SKIP() << "no usable Vulkan device (" << list.problem << "); install mesa-vulkan-drivers";
-        mValidationBefore = vulkanValidationMessages();
-    }
-    void TearDown() override
-    {
-        if (!IsSkipped()) {
-            EXPECT_EQ(vulkanValidationMessages(), mValidationBefore) << "the Vulkan validation layer reported problems";
-        }
-    }
-    uint64_t mValidationBefore = 0;
 };
 
 /// Features with probability `density` (at least one unless `density` is 0).

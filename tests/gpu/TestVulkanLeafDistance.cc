@@ -9,6 +9,7 @@
 #include <levelforge/reference/MeshShapes.h>
 
 #include "TestUtil.h"
+#include "gpu/VulkanTestSupport.h"
 #include "tools/CliRunner.h"
 
 #include <gtest/gtest.h>
@@ -26,50 +27,13 @@ using namespace levelforge;
 
 namespace {
 
-class VulkanTest : public ::testing::Test
+class VulkanTest : public levelforge_test::VulkanFixture
 {
-protected:
-    void SetUp() override
-    {
-        openvdb::initialize();
-        // every test is its own process (gtest_discover_tests): validation on before first use
-        if (std::filesystem::exists("/usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json"))
-            setenv("LEVELFORGE_VULKAN_VALIDATION", "1", 1);
-        unsetenv("LEVELFORGE_VULKAN_DEVICE");
-        const VulkanDeviceList list = listVulkanDevices();
-        bool usable = false;
-        for (const VulkanDeviceInfo& d : list.devices) usable = usable || d.chosen;
-        if (!usable) GTEST_SKIP() << "no usable Vulkan device (" << list.problem << "); install mesa-vulkan-drivers";
-        mValidationBefore = vulkanValidationMessages();
-    }
-    void TearDown() override
-    {
-        if (!IsSkipped()) {
-            EXPECT_EQ(vulkanValidationMessages(), mValidationBefore) << "the Vulkan validation layer reported problems";
-        }
-    }
-    uint64_t mValidationBefore = 0;
 };
 
-/// Every voxel of b's leaves and tiles equals a's, value and state, bit for bit (both ways).
 void expectIdentical(const openvdb::FloatGrid& a, const openvdb::FloatGrid& b, const std::string& what)
 {
-    ASSERT_EQ(a.activeVoxelCount(), b.activeVoxelCount()) << what;
-    ASSERT_EQ(a.tree().leafCount(), b.tree().leafCount()) << what;
-    uint64_t bad = 0;
-    auto acc = b.getConstAccessor();
-    for (auto it = a.tree().cbeginLeaf(); it; ++it)
-        for (auto v = it->cbeginValueAll(); v; ++v) {
-            float value;
-            const bool on = acc.probeValue(v.getCoord(), value);
-            if (on != v.isValueOn() || std::memcmp(&value, &*v, sizeof(float)) != 0) ++bad;
-        }
-    EXPECT_EQ(bad, 0u) << what << ": voxels that differ";
-    // inactive signs away from the leaves (tiles, by the flood fill or the winding tiles)
-    uint64_t tileBad = 0;
-    for (auto it = a.cbeginValueOff(); it; ++it)
-        if (!it.isVoxelValue() && b.tree().getValue(it.getCoord()) != *it) ++tileBad;
-    EXPECT_EQ(tileBad, 0u) << what << ": tiles that differ";
+    levelforge_test::expectIdenticalGrids(a, b, what);
 }
 
 MeshToLevelSetOptions options(double voxelSize, double band, SignMode sign, ComputeDevice device)

@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "gpu/VulkanTestSupport.h"
+
 #include <openvdb/openvdb.h>
 
 #include <cmath>
@@ -23,26 +25,8 @@ using namespace levelforge;
 
 namespace {
 
-class VulkanSlabTest : public ::testing::Test
+class VulkanSlabTest : public levelforge_test::VulkanFixture
 {
-protected:
-    void SetUp() override
-    {
-        openvdb::initialize();
-        if (std::filesystem::exists("/usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json"))
-            setenv("LEVELFORGE_VULKAN_VALIDATION", "1", 1);
-        unsetenv("LEVELFORGE_VULKAN_DEVICE");
-        const VulkanDeviceList list = listVulkanDevices();
-        bool usable = false;
-        for (const VulkanDeviceInfo& d : list.devices) usable = usable || d.chosen;
-        if (!usable) GTEST_SKIP() << "no usable Vulkan device (" << list.problem << "); install mesa-vulkan-drivers";
-        mBefore = vulkanValidationMessages();
-    }
-    void TearDown() override
-    {
-        if (!IsSkipped()) EXPECT_EQ(vulkanValidationMessages(), mBefore) << "the Vulkan validation layer reported problems";
-    }
-    uint64_t mBefore = 0;
 };
 
 void expectSameSlab(const DenseSlab& a, const DenseSlab& b, const std::string& what)
@@ -57,16 +41,7 @@ void expectSameSlab(const DenseSlab& a, const DenseSlab& b, const std::string& w
 
 void expectSameGrid(const openvdb::FloatGrid& a, const openvdb::FloatGrid& b, const std::string& what)
 {
-    ASSERT_EQ(a.activeVoxelCount(), b.activeVoxelCount()) << what;
-    uint64_t bad = 0;
-    auto acc = b.getConstAccessor();
-    for (auto it = a.tree().cbeginLeaf(); it; ++it)
-        for (auto v = it->cbeginValueAll(); v; ++v) {
-            float value;
-            const bool on = acc.probeValue(v.getCoord(), value);
-            if (on != v.isValueOn() || std::memcmp(&value, &*v, sizeof(float)) != 0) ++bad;
-        }
-    EXPECT_EQ(bad, 0u) << what;
+    levelforge_test::expectIdenticalGrids(a, b, what);
 }
 
 } // namespace

@@ -89,6 +89,13 @@ struct VulkanDeviceList
 /// @return the devices and, when none is usable, why
 VulkanDeviceList listVulkanDevices();
 
+/// @brief Whether ComputeDevice::Auto may use the Vulkan device for large work: a device picked
+///        by LEVELFORGE_VULKAN_DEVICE (not `none`), else the chosen device when it is a discrete
+///        GPU. The device list is read once per process (the environment each time).
+/// @param[out] why  when not: the sentence a fallback note gives (e.g. "no discrete Vulkan GPU")
+/// @return true when Auto should use the device
+bool autoUsesVulkan(std::string& why);
+
 /// @brief Validation-layer messages seen so far in this process (LEVELFORGE_VULKAN_VALIDATION=1).
 /// @return the count of warnings and errors reported by the layer
 uint64_t vulkanValidationMessages();
