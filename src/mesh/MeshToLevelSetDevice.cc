@@ -181,7 +181,7 @@ void deviceDistances(const Context& ctx, const MeshToLevelSetOptions& o, const s
     gpu_internal::LeafDistanceDevice dev(input);
     stats.device = "vulkan: " + dev.deviceName();
     const uint64_t budget = dev.slotBudget(o.deviceMemoryBudget);
-    constexpr size_t kChunk = 256;
+    constexpr size_t kChunk = 4096;
     constexpr uint64_t kLeafBytes = 512 * (sizeof(uint32_t) + sizeof(double)) + 8 * sizeof(int32_t);
     std::vector<std::vector<uint32_t>> lists(kChunk);
     tbb::enumerable_thread_specific<std::vector<uint32_t>> stacks;
@@ -190,27 +190,37 @@ void deviceDistances(const Context& ctx, const MeshToLevelSetOptions& o, const s
     auto stopAsked = [&]() { return interrupter && interrupter->wasInterrupted(20 + int(75.0 * double(done) / double(std::max<size_t>(cand.size(), 1)))); };
 
     // Lists leaves from `next` on into b until the slot budget is reached (at least one leaf).
+    // Lists leaves from `next` on into b until the slot budget is reached (at least one leaf):
+    // chunks of leaves listed in parallel, then appended with one parallel copy per chunk.
     auto prepare = [&](gpu_internal::LeafBatch& b) {
         b.clear();
         uint64_t bytes = 0;
+        std::vector<size_t> at;
         while (next < cand.size()) {
             const size_t n = std::min(kChunk, cand.size() - next);
             tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 8), [&](const tbb::blocked_range<size_t>& r) {
                 auto& st = stacks.local();
                 for (size_t i = r.begin(); i != r.end(); ++i) leafCandidates(ctx, cand[next + i], st, lists[i]);
             });
-            size_t taken = 0;
+            size_t taken = 0, total = b.cands.size();
+            at.assign(n, 0);
             for (; taken < n; ++taken) {
                 const std::vector<uint32_t>& l = lists[taken];
                 if (l.empty()) continue; // nothing within reach: no output leaf
                 const uint64_t need = kLeafBytes + 4 * l.size();
                 if (b.count() > 0 && bytes + need > budget) break;
                 const Coord& c = cand[next + taken];
-                b.leaves.insert(b.leaves.end(), {c.x(), c.y(), c.z(), int32_t(b.cands.size()), int32_t(l.size()), 0, 0, 0});
-                b.cands.insert(b.cands.end(), l.begin(), l.end());
+                b.leaves.insert(b.leaves.end(), {c.x(), c.y(), c.z(), int32_t(total), int32_t(l.size()), 0, 0, 0});
                 b.slots.push_back(next + taken);
+                at[taken] = total;
+                total += l.size();
                 bytes += need;
             }
+            b.cands.resize(total);
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, taken, 16), [&](const tbb::blocked_range<size_t>& r) {
+                for (size_t i = r.begin(); i != r.end(); ++i)
+                    if (!lists[i].empty()) std::copy(lists[i].begin(), lists[i].end(), b.cands.begin() + std::ptrdiff_t(at[i]));
+            });
             next += taken;
             if (taken < n) break;
         }
