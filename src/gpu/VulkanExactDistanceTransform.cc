@@ -14,6 +14,7 @@
 // result (edt_lines.comp) is exercised on devices whose own division and sqrt are exact.
 #include "gpu/VulkanExactDistanceTransform.h"
 #include "gpu/VulkanRuntime.h"
+#include "detail/Timer.h"
 #include "volume/DenseVolumeHelpers.h"
 
 #include <levelforge/core/Exceptions.h>
@@ -22,7 +23,6 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
@@ -36,8 +36,7 @@ extern const size_t kSpirv_edt_linesBytes;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using detail::Clock;
 
 /// The push constants of edt_lines.comp.
 struct Push
@@ -110,7 +109,7 @@ struct DeviceEdt
         ++stats.submissions;
         const auto t = Clock::now();
         const bool done = sub->wait([this] { return interrupted(); });
-        seconds += since(t);
+        seconds += detail::secondsSince(t);
         if (!done) throw InterruptedError("exact distance transform interrupted");
     }
 
@@ -168,23 +167,6 @@ struct DeviceEdt
         }
     }
 };
-
-/// memcpy in 4 MiB pieces on every thread (staging memory is written and read at memory speed
-/// only with several cores).
-void copyParallel(void* dst, const void* src, uint64_t bytes)
-{
-    constexpr uint64_t kPiece = uint64_t(4) << 20;
-    auto* d = static_cast<unsigned char*>(dst);
-    const auto* s = static_cast<const unsigned char*>(src);
-    if (bytes <= kPiece) {
-        std::memcpy(d, s, bytes);
-        return;
-    }
-    tbb::parallel_for(tbb::blocked_range<uint64_t>(0, (bytes + kPiece - 1) / kPiece), [&](const tbb::blocked_range<uint64_t>& r) {
-        for (uint64_t c = r.begin(); c != r.end(); ++c)
-            std::memcpy(d + c * kPiece, s + c * kPiece, std::min(kPiece, bytes - c * kPiece));
-    });
-}
 
 /// `rows` floats from each of `count` blocks of src (`srcStride` apart) into dst (`dstStride`
 /// apart), in parallel over the blocks.
@@ -273,8 +255,8 @@ ScalarVolume deviceExactDistanceTransform(const MaskVolume& features, uint64_t b
         const uint64_t kk = std::min(dz, nz - k0);
         e.percent = int(66 * k0 / nz);
         auto t = Clock::now();
-        copyParallel(e.uploadTarget(e.mask, e.upMask), features.data.data() + k0 * nxy, kk * nxy);
-        stats.secondsTransfer += since(t);
+        parallelCopy(e.uploadTarget(e.mask, e.upMask), features.data.data() + k0 * nxy, kk * nxy);
+        stats.secondsTransfer += detail::secondsSince(t);
         e.commitUpload(e.mask, e.upMask, kk * nxy);
         e.run(Pass{u32(nx), u32(ny * kk), u32(ny), u32(nx), u32(nxy), 1, 0, sx2});
         e.percent = int(66 * k0 / nz + 33 * kk / nz);
@@ -283,8 +265,8 @@ ScalarVolume deviceExactDistanceTransform(const MaskVolume& features, uint64_t b
         if (whole) continue;
         const float* src = e.downloadField(4 * kk * nxy);
         t = Clock::now();
-        copyParallel(g + k0 * nxy, src, 4 * kk * nxy);
-        stats.secondsTransfer += since(t);
+        parallelCopy(g + k0 * nxy, src, 4 * kk * nxy);
+        stats.secondsTransfer += detail::secondsSince(t);
     }
     // z pass, per slab of y-rows: [k][row][i], rows `jj` apart along z
     for (uint64_t j0 = 0; j0 < ny; j0 += dj) {
@@ -294,16 +276,16 @@ ScalarVolume deviceExactDistanceTransform(const MaskVolume& features, uint64_t b
             const auto t = Clock::now();
             float* dst = static_cast<float*>(e.uploadTarget(e.field, e.upField));
             copyBlocks(dst, row, g + j0 * nx, nxy, row, nz);
-            stats.secondsTransfer += since(t);
+            stats.secondsTransfer += detail::secondsSince(t);
             e.commitUpload(e.field, e.upField, 4 * nz * row);
         }
         e.run(Pass{u32(nz), u32(row), u32(nx), 1, u32(nx), u32(row), 2, sz2});
         ++stats.slabs;
         const float* src = e.downloadField(4 * nz * row);
         const auto t = Clock::now();
-        if (whole) copyParallel(g, src, 4 * voxels);
+        if (whole) parallelCopy(g, src, 4 * voxels);
         else copyBlocks(g + j0 * nx, nxy, src, row, row, nz);
-        stats.secondsTransfer += since(t);
+        stats.secondsTransfer += detail::secondsSince(t);
     }
     return out;
 }

@@ -2,11 +2,9 @@
 // The main road's band leaves on a Vulkan device. See VulkanLeafDistance.h.
 #include "gpu/VulkanLeafDistance.h"
 #include "gpu/VulkanRuntime.h"
-
-#include <tbb/parallel_for.h>
+#include "detail/Timer.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cstring>
 
 namespace levelforge::gpu_internal {
@@ -15,21 +13,7 @@ extern const uint32_t kSpirv_leaf_distance[];
 extern const size_t kSpirv_leaf_distanceBytes;
 
 namespace {
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-/// memcpy in 4 MiB blocks on every thread (staging memory is written at memory speed, not one
-/// core's copy speed).
-void parallelCopy(void* dst, const void* src, size_t bytes)
-{
-    constexpr size_t kBlock = size_t(4) << 20;
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, (bytes + kBlock - 1) / kBlock), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            const size_t off = i * kBlock;
-            std::memcpy(static_cast<char*>(dst) + off, static_cast<const char*>(src) + off, std::min(kBlock, bytes - off));
-        }
-    });
-}
+using detail::Clock;
 
 struct Push
 {
@@ -149,7 +133,7 @@ LeafDistanceDevice::LeafDistanceDevice(const LeafDeviceInput& in) : mImpl(new Im
     } else {
         for (Buffer* b : {&m.triNormals, &m.vertexNormals, &m.triVertices}) m.ensure(*b, 4, Memory::Device, "a placeholder");
     }
-    mStats.secondsCopy += since(t);
+    mStats.secondsCopy += detail::secondsSince(t);
 }
 
 LeafDistanceDevice::~LeafDistanceDevice() = default;
@@ -195,7 +179,7 @@ void LeafDistanceDevice::start(int slot, const LeafBatch& b, double limit2)
         sub.copy(s.upCands, s.cands, cb);
         sub.barrier();
     }
-    mStats.secondsCopy += since(t);
+    mStats.secondsCopy += detail::secondsSince(t);
     const uint32_t maxX = std::min<uint32_t>(m.ctx->limits().maxComputeWorkGroupCount[0], 65535u);
     // candidate windows: one on a GPU; on a CPU device (lavapipe cuts loops after 65535
     // iterations per invocation) windows of 16384 candidates, one dispatch each
@@ -232,7 +216,7 @@ bool LeafDistanceDevice::finish(int slot, const std::function<bool()>& interrupt
     if (s.count == 0) return true;
     const auto t = Clock::now();
     const bool done = s.sub->wait(interrupted);
-    mStats.secondsWait += since(t);
+    mStats.secondsWait += detail::secondsSince(t);
     if (!done) return false;
     const bool unified = m.ctx->unifiedMemory();
     m.ctx->invalidate(unified ? s.tri : s.downTri);

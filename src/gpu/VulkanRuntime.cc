@@ -4,6 +4,8 @@
 
 #include <dlfcn.h>
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
@@ -482,6 +484,21 @@ void Context::destroy(Kernel& k)
     if (k.setLayout != VK_NULL_HANDLE) mApi.vkDestroyDescriptorSetLayout(mDevice, k.setLayout, nullptr);
     if (k.module != VK_NULL_HANDLE) mApi.vkDestroyShaderModule(mDevice, k.module, nullptr);
     k = Kernel{};
+}
+
+void parallelCopy(void* dst, const void* src, uint64_t bytes)
+{
+    constexpr uint64_t kPiece = uint64_t(4) << 20;
+    auto* d = static_cast<unsigned char*>(dst);
+    const auto* s = static_cast<const unsigned char*>(src);
+    if (bytes <= kPiece) {
+        if (bytes) std::memcpy(d, s, bytes);
+        return;
+    }
+    tbb::parallel_for(tbb::blocked_range<uint64_t>(0, (bytes + kPiece - 1) / kPiece), [&](const tbb::blocked_range<uint64_t>& r) {
+        for (uint64_t c = r.begin(); c != r.end(); ++c)
+            std::memcpy(d + c * kPiece, s + c * kPiece, std::min(kPiece, bytes - c * kPiece));
+    });
 }
 
 // ------------------------------------------------------------------------------------ Submission

@@ -110,7 +110,7 @@ public:
     void destroy(Kernel& k);
 
     /// The largest storage buffer a kernel can address (maxStorageBufferRange: 128 MiB on
-    /// lavapipe, 4 GiB on NVIDIA).
+    /// lavapipe).
     uint64_t maxBufferRange() const { return mLimits.maxStorageBufferRange; }
     /// Throws DeviceError when `bytes` do not fit one storage buffer of this device.
     void requireRange(uint64_t bytes, const char* what) const;
@@ -139,6 +139,10 @@ private:
     std::mutex mQueueMutex;
     friend struct ContextFactory;
 };
+
+/// memcpy in 4 MiB pieces on every thread: staging memory is written and read at memory speed
+/// only with several cores (one call below 4 MiB).
+void parallelCopy(void* dst, const void* src, uint64_t bytes);
 
 /// One in-flight unit of work: a command buffer, its fence and descriptor pool. Record with
 /// begin() ... submit(), then wait().

@@ -3,11 +3,11 @@
 #include <levelforge/gpu/VulkanSlabBackend.h>
 
 #include "gpu/VulkanRuntime.h"
+#include "detail/Timer.h"
 
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -22,7 +22,7 @@ extern const size_t kSpirv_slab_fillBytes;
 using namespace gpu_internal;
 
 namespace {
-using Clock = std::chrono::steady_clock;
+using detail::Clock;
 struct Push
 {
     double h;
@@ -195,7 +195,7 @@ struct VulkanSlabBackend::Impl
         sub->submit();
         const auto t = Clock::now();
         sub->wait();
-        stats.secondsWait += std::chrono::duration<double>(Clock::now() - t).count();
+        stats.secondsWait += detail::secondsSince(t);
         const Buffer* out[3];
         for (int k : {Tri, D2, Raster}) {
             const Buffer& r = ctx->unifiedMemory() ? dev[k] : stage[k];
