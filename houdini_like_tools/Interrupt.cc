@@ -20,9 +20,9 @@ namespace levelforge::ops {
 namespace {
 
 volatile std::sig_atomic_t gInterrupted = 0;
-volatile std::sig_atomic_t gReading = 0; // a ReadingScope is alive
+std::atomic<int> gReading{0}; // ReadingScopes alive (frames read in parallel)
 std::atomic<int> gSignalCount{0};
-static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a lock-free counter");
+static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs lock-free counters");
 
 /// write() all of a literal to stderr, ignoring errors (async-signal-safe).
 template<size_t N>
@@ -52,7 +52,7 @@ extern "C" void onInterruptSignal(int)
         writeStderr("levelforge: error: interrupted while writing; the partial output was removed\n");
         ::_exit(kExitInterrupted);
     }
-    if (count >= 2 || gReading) {
+    if (count >= 2 || gReading.load() > 0) {
         writeStderr("levelforge: error: interrupted\n");
         ::_exit(kExitInterrupted);
     }
@@ -84,20 +84,13 @@ bool interruptRequested() { return gInterrupted != 0; }
 
 ReadingScope::ReadingScope()
 {
-    gReading = 1;
+    gReading.fetch_add(1);
     if (interruptRequested()) {
-        gReading = 0;
+        gReading.fetch_sub(1);
         throw InterruptedError("interrupted");
     }
 }
 
-ReadingScope::~ReadingScope() { gReading = 0; }
-
-bool CliProgress::wasInterrupted(int percent)
-{
-    const bool stop = interruptRequested();
-    if (!stop) StderrProgress::wasInterrupted(percent);
-    return stop;
-}
+ReadingScope::~ReadingScope() { gReading.fetch_sub(1); }
 
 } // namespace levelforge::ops

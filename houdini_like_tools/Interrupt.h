@@ -29,6 +29,10 @@
 
 #include <levelforge/core/Progress.h>
 
+#include <atomic>
+#include <chrono>
+#include <string>
+
 namespace levelforge::ops {
 
 /// Installs the SIGINT / SIGTERM handlers (main() calls it; library code never does).
@@ -39,7 +43,8 @@ bool interruptRequested();
 
 /// @brief While alive, SIGINT / SIGTERM end the process at once (status 130): wrap the reading of
 ///        inputs, which has no side effects and polls no interrupter. Throws InterruptedError
-///        when a signal has already arrived. Not nestable across threads (one reader at a time).
+///        when a signal has already arrived. Scopes may be alive on several threads at once
+///        (frames read in parallel): the process ends while any is alive.
 class ReadingScope
 {
 public:
@@ -49,12 +54,68 @@ public:
     ReadingScope& operator=(const ReadingScope&) = delete;
 };
 
-/// StderrProgress that also reports a pending Ctrl-C as an interruption.
-class CliProgress : public StderrProgress
+/// @brief The operators' progress reporter; also reports a pending Ctrl-C as an interruption.
+///
+/// How it prints (stderr), chosen when it is made:
+///  - on a terminal (stderr is a TTY and TERM is not "dumb"): one updating bar per stage,
+///    "levelforge: <stage> [########------------]  40%  ETA 3 s", redrawn at most 10 times a
+///    second, ended by "levelforge: <stage> done (N.NN s)";
+///  - otherwise: plain lines "levelforge: <stage> 40%" every `minStep` percent, then the
+///    "done" line (what a log file or a farm scheduler wants);
+///  - nothing when disabled (--quiet) or inside a SilentProgressScope (frames cooked in
+///    parallel report per frame instead).
+/// Stages that end within half a second print nothing. LEVELFORGE_PROGRESS=bar|plain|none
+/// overrides the choice (bar: even when not a terminal). The stage name is prefixed by the
+/// ProgressPrefixScope of the thread that made the reporter ("frame 12 (3/240) step 2/3 reshape: ").
+class CliProgress : public openvdb::util::NullInterrupter
 {
 public:
-    using StderrProgress::StderrProgress;
+    explicit CliProgress(int minStep = 10, bool enabled = true);
+    void start(const char* name = nullptr) override;
+    void end() override;
+    /// Prints progress (safe to call from TBB worker threads); true once Ctrl-C was pressed.
     bool wasInterrupted(int percent = -1) override;
+
+private:
+    void draw(int percent, bool final);
+
+    enum class Mode { None, Plain, Bar };
+    Mode mMode;
+    int mStep;
+    std::string mPrefix, mName;
+    std::atomic<int> mLast{-1};          ///< last printed percent (plain) or drawn percent (bar)
+    std::atomic<long long> mLastDrawNs{0};
+    std::atomic<bool> mDrawing{false};
+    std::chrono::steady_clock::time_point mStart;
+};
+
+/// While alive, CliProgress reporters made on this thread prefix their stage names with @p prefix.
+class ProgressPrefixScope
+{
+public:
+    explicit ProgressPrefixScope(std::string prefix);
+    ~ProgressPrefixScope();
+    ProgressPrefixScope(const ProgressPrefixScope&) = delete;
+    ProgressPrefixScope& operator=(const ProgressPrefixScope&) = delete;
+    /// The prefix in effect on this thread.
+    static const std::string& current();
+
+private:
+    std::string mSaved;
+};
+
+/// While alive, CliProgress reporters made on this thread print nothing.
+class SilentProgressScope
+{
+public:
+    SilentProgressScope();
+    ~SilentProgressScope();
+    SilentProgressScope(const SilentProgressScope&) = delete;
+    SilentProgressScope& operator=(const SilentProgressScope&) = delete;
+    static bool active();
+
+private:
+    bool mSaved;
 };
 
 } // namespace levelforge::ops

@@ -2,6 +2,9 @@
 // levelforge — operator declarations and argument values (see Operator.h).
 #include "Operator.h"
 
+#include "FrameRange.h"
+#include "FrameRunner.h"
+
 #include "OperatorRegistry.h"
 
 // The library's output rule (detail::resolveOutputTarget). Included by a relative path:
@@ -300,6 +303,12 @@ OperatorSpec& OperatorSpec::cook(CookFunction fn)
     return *this;
 }
 
+OperatorSpec& OperatorSpec::precheck(CookFunction fn)
+{
+    mPrecheck = std::move(fn);
+    return *this;
+}
+
 OperatorSpec& OperatorSpec::allowInPlace(bool on)
 {
     mInPlace = on;
@@ -322,7 +331,8 @@ void OperatorSpec::checkDeclaration() const
     if (!validName(mName)) bad("the name must be kebab-case");
     if (mHelp.empty()) bad("no help text");
     if (!mCook) bad("no cook function");
-    std::set<std::string> names{"help"};
+    // "help" and the common options every operator has (FrameRunner.h) are reserved
+    std::set<std::string> names{"help", "frames", "jobs", "stop-on-error", "report-json", "plugin"};
     for (const Port& port : mInputs) {
         if (!validName(port.name)) bad("input '" + port.name + "' is not kebab-case");
         if (!names.insert(port.name).second) bad("duplicate name '" + port.name + "'");
@@ -424,6 +434,7 @@ std::string OperatorSpec::helpText(const std::string& program) const
         column(left, right);
     }
     column("-h, --help", "Print this help and exit.");
+    os << commonOptionsHelp();
     if (!mExamples.empty()) {
         os << "\nExamples:\n";
         for (const std::string& ex : mExamples) os << "  " << ex << "\n";
@@ -567,6 +578,7 @@ void OperatorArgs::checkOutputs() const
         auto it = mPorts.find(port.name);
         if (it == mPorts.end() || it->second.empty()) continue; // checkComplete() reports it
         const std::string& path = it->second;
+        if (!path.empty() && path[0] == '@') continue; // an in-memory pipeline slot (OperatorIO.h)
         detail::OutputTarget target =
             detail::resolveOutputTarget(path, "cannot write '" + path + "'");
         if (target.discard) continue; // /dev/null: written through, never replaced
@@ -592,6 +604,35 @@ void OperatorArgs::checkOutputs() const
         }
         checked.emplace_back(&port, std::move(target));
     }
+}
+
+void OperatorArgs::stat(const std::string& key, ParamValue value)
+{
+    for (auto& [k, v] : mStats) {
+        if (k == key) {
+            v = std::move(value);
+            return;
+        }
+    }
+    mStats.emplace_back(key, std::move(value));
+}
+
+OperatorArgs OperatorArgs::forFrame(int frame) const
+{
+    OperatorArgs a = *this;
+    for (auto& [name, path] : a.mPorts) path = substituteFrame(path, frame);
+    for (auto& [name, value] : a.mValues) {
+        if (auto* text = std::get_if<std::string>(&value)) *text = substituteFrame(*text, frame);
+    }
+    a.mFrame = frame;
+    return a;
+}
+
+std::map<std::string, ParamValue> OperatorArgs::effectiveValues() const
+{
+    std::map<std::string, ParamValue> values = mDefaults;
+    for (const auto& [k, v] : mValues) values[k] = v;
+    return values;
 }
 
 void OperatorArgs::cook()

@@ -125,6 +125,7 @@ using ParamValue = std::variant<int64_t, double, std::string, bool>;
 ParamValue parseParamValue(const Param& param, const std::string& text);
 
 class OperatorArgs;
+class MemoryStore; // OperatorIO.h
 using CookFunction = std::function<void(OperatorArgs&)>;
 
 /// The whole declaration of one operator.
@@ -142,6 +143,10 @@ public:
     OperatorSpec& params(const std::vector<Param>& ps);
     OperatorSpec& example(std::string commandLine); ///< shown in --help
     OperatorSpec& cook(CookFunction fn);
+    /// Optional: checks the arguments once before anything is cooked (with --frames: once, with
+    /// the first frame's tokens replaced, not once per frame), e.g. `run` validates its
+    /// pipeline file. Throws like a cook.
+    OperatorSpec& precheck(CookFunction fn);
     /// Allows an output to be the same file as an input (the operator reads its inputs
     /// completely before it writes, and says so in its help). Off by default.
     OperatorSpec& allowInPlace(bool on = true);
@@ -154,6 +159,7 @@ public:
     const std::vector<Param>& params() const { return mParams; }
     const std::vector<std::string>& examples() const { return mExamples; }
     const CookFunction& cookFunction() const { return mCook; }
+    const CookFunction& precheckFunction() const { return mPrecheck; }
     /// True if allowInPlace() was declared.
     bool inPlaceAllowed() const { return mInPlace; }
 
@@ -170,7 +176,7 @@ private:
     std::vector<Port> mInputs, mOutputs;
     std::vector<Param> mParams;
     std::vector<std::string> mExamples;
-    CookFunction mCook;
+    CookFunction mCook, mPrecheck;
     bool mInPlace = false;
 };
 
@@ -225,6 +231,45 @@ public:
     std::ostream& out() const { return *mOut; }
     std::ostream& err() const { return *mErr; }
 
+    /// Redirects what the cook prints (a frame cooked in parallel prints into a buffer).
+    OperatorArgs& setStreams(std::ostream& out, std::ostream& err) { mOut = &out; mErr = &err; return *this; }
+    /// The frame being cooked (`--frames`, `levelforge run --frames`); nullopt without frames.
+    std::optional<int> frame() const { return mFrame; }
+    OperatorArgs& setFrame(std::optional<int> frame) { mFrame = frame; return *this; }
+    /// A copy for one frame: every input, output and given text parameter with its frame tokens
+    /// ($F, $F4, %04d; FrameRange.h) replaced by @p frame, and frame() set.
+    OperatorArgs forFrame(int frame) const;
+
+    /// Reports of nested cooks (the steps of `levelforge run`), each one JSON object as text,
+    /// embedded by --report-json under "steps".
+    void addStepReport(std::string json) { mStepReports.push_back(std::move(json)); }
+    const std::vector<std::string>& stepReports() const { return mStepReports; }
+
+    /// The in-memory slots ("@name") of the pipeline this cook is a step of; null outside
+    /// `levelforge run` (OperatorIO.h reads and writes through it).
+    MemoryStore* memory() const { return mMemory; }
+    OperatorArgs& setMemory(MemoryStore* store) { mMemory = store; return *this; }
+
+    /// Records a statistic of this cook under @p key (replacing an earlier value), for
+    /// `--report-json`: the numbers the operator prints (voxel counts, seconds, ...).
+    void stat(const std::string& key, ParamValue value);
+    void stat(const std::string& key, const std::string& value) { stat(key, ParamValue(value)); }
+    void stat(const std::string& key, const char* value) { stat(key, ParamValue(std::string(value))); }
+    void stat(const std::string& key, double value) { stat(key, ParamValue(value)); }
+    void stat(const std::string& key, bool value) { stat(key, ParamValue(value)); }
+    void stat(const std::string& key, int value) { stat(key, ParamValue(int64_t(value))); }
+    void stat(const std::string& key, unsigned value) { stat(key, ParamValue(int64_t(value))); }
+    void stat(const std::string& key, long value) { stat(key, ParamValue(int64_t(value))); }
+    void stat(const std::string& key, unsigned long value) { stat(key, ParamValue(int64_t(value))); }
+    void stat(const std::string& key, long long value) { stat(key, ParamValue(int64_t(value))); }
+    void stat(const std::string& key, unsigned long long value) { stat(key, ParamValue(int64_t(value))); }
+    /// The statistics recorded by the cook, in the order they were first recorded.
+    const std::vector<std::pair<std::string, ParamValue>>& stats() const { return mStats; }
+    /// The parameter values in effect (given or defaulted), by name, for reports.
+    std::map<std::string, ParamValue> effectiveValues() const;
+    /// The positional inputs and outputs as given, by declared name.
+    const std::map<std::string, std::string>& ports() const { return mPorts; }
+
 private:
     const ParamValue& value(const std::string& name, ParamType expected) const;
 
@@ -234,6 +279,10 @@ private:
     std::map<std::string, ParamValue> mValues;   ///< given explicitly
     std::map<std::string, ParamValue> mDefaults; ///< parsed declared defaults
     std::map<std::string, std::string> mPorts;
+    MemoryStore* mMemory = nullptr;
+    std::optional<int> mFrame;
+    std::vector<std::pair<std::string, ParamValue>> mStats;
+    std::vector<std::string> mStepReports;
 };
 
 /// Adds `spec` to OperatorRegistry::global() during static initialisation.

@@ -2,6 +2,8 @@
 // levelforge — operator registry and the generated command line (see OperatorRegistry.h).
 #include "OperatorRegistry.h"
 
+#include "FrameRunner.h"
+
 #include "detail/MessageText.h"
 
 #include <levelforge/io/VdbIO.h> // generatorString()
@@ -45,6 +47,12 @@ struct Collected
     std::map<std::string, std::vector<std::string>> lists; // repeatable parameters
     std::map<std::string, int64_t> flags;
     std::map<std::string, CLI::Option*> options;
+    // the common options (FrameRunner.h)
+    std::string frames, reportJson;
+    int jobs = 1;
+    int64_t stopOnError = 0;
+    std::vector<std::string> plugins;
+    CLI::Option* framesOption = nullptr;
 };
 
 int report(std::ostream& err, const std::string& message, int code)
@@ -143,6 +151,10 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
             return registry.helpText(program);
         });
         app.require_subcommand(0, 1);
+        std::vector<std::string> appPlugins; // loaded by main() before the parse (Plugins.h)
+        app.add_option("--plugin", appPlugins, "Load operators from a plugin library")
+            ->expected(1)
+            ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
 
         std::map<std::string, Collected> collected;
         for (const OperatorSpec* spec : registry.list()) {
@@ -156,6 +168,11 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
                     c.options[port.name] = sub->add_option(port.name, c.ports[port.name], port.help);
                 }
             }
+            c.framesOption = sub->add_option("--frames", c.frames, "Frame Range");
+            sub->add_option("--jobs", c.jobs, "Jobs")->check(CLI::Range(1, 1024));
+            sub->add_flag("--stop-on-error", c.stopOnError, "Stop On Error");
+            sub->add_option("--report-json", c.reportJson, "Report File");
+            sub->add_option("--plugin", c.plugins, "Plugin")->expected(1)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
             for (const Param& p : spec->params()) {
                 if (p.type == ParamType::Bool) {
                     c.options[p.name] = sub->add_flag(p.option(), c.flags[p.name], p.help);
@@ -225,8 +242,22 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
                                    " --help')", kExitUsage);
         }
 
-        opArgs.cook();
-        return kExitOk;
+        CommonOptions common;
+        common.jobs = c.jobs;
+        common.stopOnError = c.stopOnError > 0;
+        common.reportJson = c.reportJson;
+        try {
+            if (c.framesOption->count() > 0) common.frames = parseFrameRange(c.frames);
+        } catch (const UsageError& e) {
+            return report(err, std::string(e.what()) + " (see '" + program + " " + spec.name() + " --help')",
+                          kExitUsage);
+        }
+        if (spec.precheckFunction()) {
+            // once, before any frame: a bad pipeline is one error, not one per frame
+            OperatorArgs first = common.frames ? opArgs.forFrame(common.frames->first) : opArgs;
+            spec.precheckFunction()(first);
+        }
+        return cookWithCommonOptions(opArgs, common, out, err);
     } catch (const UsageError& e) {
         return report(err, e.what(), kExitUsage);
     } catch (const InterruptedError& e) {

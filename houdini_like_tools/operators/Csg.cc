@@ -2,6 +2,7 @@
 // levelforge operator `csg`: union, intersection or difference of two ADFs or two level sets
 // (Yin et al. Figure 10; Houdini: VDB Combine in SDF mode).
 #include "Operator.h"
+#include "OperatorIO.h"
 #include "Interrupt.h"
 
 #include <levelforge/adf/AdaptiveDistanceField.h>
@@ -17,13 +18,10 @@ namespace levelforge::ops {
 namespace {
 
 /// The first FloatGrid of a .vdb file (or the one named `name`).
-openvdb::FloatGrid::Ptr firstFloatGrid(const std::string& path, const std::string& name)
+openvdb::FloatGrid::Ptr firstFloatGrid(const OperatorArgs& args, const std::string& path, const std::string& name)
 {
     openvdb::GridPtrVecPtr grids;
-    {
-        const ReadingScope reading;
-        grids = readGrids(path);
-    }
+    grids = readGridsInput(args, path);
     for (const auto& g : *grids) {
         if (!g->isType<openvdb::FloatGrid>()) continue;
         if (!name.empty() && g->getName() != name) continue;
@@ -42,10 +40,10 @@ void cookCsg(OperatorArgs& args)
     const std::string& pathA = args.input("a");
     const std::string& pathB = args.input("b");
     const std::string& output = args.output("output");
-    checkOutputPath(output);
+    checkOutputTarget(args, output);
     const CsgOperation op = csgOperationFromString(args.getString("op"));
     const std::string gridName = args.isSet("grid") ? args.getString("grid") : std::string();
-    openvdb::FloatGrid::Ptr a = firstFloatGrid(pathA, gridName), b = firstFloatGrid(pathB, gridName);
+    openvdb::FloatGrid::Ptr a = firstFloatGrid(args, pathA, gridName), b = firstFloatGrid(args, pathB, gridName);
     const bool adfA = isAdaptiveDistanceField(*a), adfB = isAdaptiveDistanceField(*b);
     openvdb::FloatGrid::Ptr result;
     std::string kind;
@@ -64,7 +62,9 @@ void cookCsg(OperatorArgs& args)
     }
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsAtomic(output, openvdb::GridPtrVec{result}, fileMeta);
+    writeGridsOutput(args, output, openvdb::GridPtrVec{result}, fileMeta);
+    args.stat("kind", kind);
+    args.stat("active_voxels", uint64_t(result->activeVoxelCount()));
     args.out() << "levelforge: wrote " << output << " (" << kind << " '" << result->getName() << "', "
                << args.getString("op") << " of " << pathA << " and " << pathB << ")\n";
 }

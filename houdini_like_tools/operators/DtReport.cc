@@ -3,6 +3,7 @@
 // exact Euclidean field, in the columns of the paper's tables (1, 2, 4–7).
 #include "Interrupt.h"
 #include "Operator.h"
+#include "OperatorIO.h"
 #include "OperatorText.h"
 
 #include <levelforge/volume/ChamferDistanceTransform.h>
@@ -78,7 +79,7 @@ void cookDtReport(OperatorArgs& args)
     float iso = float(args.getFloat("iso"));
     bool below = args.getBool("invert");
     if (isMeshPath(input)) {
-        field = meshField(readMesh(input), int(args.getInt("voxel-count")));
+        field = meshField(readMeshInput(args, input), int(args.getInt("voxel-count")));
         iso = 0.0f;
         below = false;
         info.format = "mesh";

@@ -4,6 +4,7 @@
 #include "Interrupt.h"
 #include "LevelSetInput.h"
 #include "Operator.h"
+#include "OperatorIO.h"
 #include "OperatorText.h"
 
 #include <levelforge/core/Exceptions.h>
@@ -29,13 +30,10 @@ void cookExpand(OperatorArgs& args)
     const auto t0 = Clock::now();
     const std::string& input = args.input("input");
     const std::string& output = args.output("output");
-    checkOutputPath(output);
+    checkOutputTarget(args, output);
 
     openvdb::GridPtrVecPtr grids;
-    {
-        const ReadingScope reading;
-        grids = readGrids(input);
-    }
+    grids = readGridsInput(args, input);
     openvdb::FloatGrid::Ptr grid =
         pickLevelSet(*grids, input, args.has("grid-name") ? args.getString("grid-name") : "");
 
@@ -69,8 +67,12 @@ void cookExpand(OperatorArgs& args)
     for (const auto& g : *grids) result.push_back(g == grid ? out : g);
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsAtomic(output, result, fileMeta);
+    writeGridsOutput(args, output, result, fileMeta);
 
+    args.stat("input_band_voxels", uint64_t(st.frozenVoxels));
+    args.stat("active_voxels", uint64_t(out->activeVoxelCount()));
+    args.stat("exterior_band_voxels", ext);
+    args.stat("interior_band_voxels", in);
     std::ostream& os = args.out();
     os << "levelforge: wrote " << output << "\n"
        << "  grid '" << out->getName() << "': " << withThousands(st.frozenVoxels)

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // levelforge operator `info`: describe the grids of a .vdb file (like `vdb_print -l`).
 #include "Operator.h"
+#include "OperatorIO.h"
 #include "Interrupt.h"
 #include "OperatorText.h"
 
@@ -96,10 +97,7 @@ void cookInfo(OperatorArgs& args)
 {
     const std::string& path = args.input("file");
     openvdb::GridPtrVecPtr grids;
-    {
-        const ReadingScope reading;
-        grids = readGrids(path);
-    }
+    grids = readGridsInput(args, path);
     const std::string& only = args.getString("grid");
     std::ostream& os = args.out();
     os << path << ": " << grids->size() << (grids->size() == 1 ? " grid" : " grids") << "\n";

@@ -3,8 +3,8 @@
 // Yin, Liu, Wu 2011 on the VDB tile hierarchy (AdaptiveDistanceField.h).
 #include "GridParams.h"
 #include "Interrupt.h"
-#include "MeshInput.h"
 #include "Operator.h"
+#include "OperatorIO.h"
 #include "OperatorText.h"
 
 #include <levelforge/adf/AdaptiveDistanceField.h>
@@ -43,8 +43,8 @@ void cookMeshToAdf(OperatorArgs& args)
     const std::string& input = args.input("mesh");
     const std::string& output = args.output("output");
     std::ostream& out = args.out();
-    checkOutputPath(output);
-    const TriangleMesh mesh = readMeshInput(input);
+    checkOutputTarget(args, output);
+    const TriangleMesh mesh = readMeshInput(args, input);
     const MeshReport validation = validateMesh(mesh);
     if (!validation.closed())
         args.err() << "levelforge: warning: " << input
@@ -63,9 +63,12 @@ void cookMeshToAdf(OperatorArgs& args)
     auto grid = openvdb::ConstPtrCast<openvdb::FloatGrid>(adf.grid());
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
+    writeGridsOutput(args, output, openvdb::GridPtrVec{grid}, fileMeta);
     const double total = secondsSince(t0);
 
+    args.stat("finest_voxel_size", double(s.voxelSize));
+    args.stat("cells", uint64_t(grid->activeVoxelCount()));
+    args.stat("total_seconds", total);
     out << "levelforge: wrote " << output << "\n"
         << "  ADF '" << grid->getName() << "': finest voxel " << fmt("%.6g", s.voxelSize) << " (world units), domain "
         << adf.indexDomain().min() << " -> " << adf.indexDomain().max() << "\n"

@@ -3,8 +3,8 @@
 // pipeline (pipeline/MeshToSdf.h). Houdini: *VDB from Polygons* (distance VDB); vdb_tool: mesh2ls.
 #include "GridParams.h"
 #include "Interrupt.h"
-#include "MeshInput.h"
 #include "Operator.h"
+#include "OperatorIO.h"
 #include "OperatorText.h"
 
 #include <levelforge/core/Exceptions.h>
@@ -92,7 +92,7 @@ void cookMeshToSdf(OperatorArgs& args)
     std::ostream& err = args.err();
 
     // Fail fast, before any work, when the output cannot be written or the reference is bad.
-    checkOutputPath(output);
+    checkOutputTarget(args, output);
     ReferenceGrid reference;
     const bool haveReference = args.isSet("reference");
     if (haveReference) reference = readReferenceGrid(args.getString("reference"));
@@ -115,11 +115,10 @@ void cookMeshToSdf(OperatorArgs& args)
     }
     MeshReadInfo info;
     TriangleMesh mesh;
-    if (readOptions.attributes.empty() || isBuiltinMeshName(input)) {
-        mesh = readMeshInput(input, &info);
+    if (readOptions.attributes.empty()) {
+        mesh = readMeshInput(args, input, &info);
     } else {
-        const ReadingScope reading; // SIGINT / SIGTERM end the process at once while reading
-        mesh = readMesh(input, readOptions, info);
+        mesh = readMeshInput(args, input, readOptions, info);
     }
     if (info.droppedFaces > 0) {
         err << "levelforge: warning: " << input << ": " << info.droppedFaces
@@ -178,10 +177,18 @@ void cookMeshToSdf(OperatorArgs& args)
 
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsAtomic(output, grids.all(), fileMeta); // every grid in one file, atomically
+    writeGridsOutput(args, output, grids.all(), fileMeta); // every grid in one file, atomically
     const double totalSeconds = secondsSince(t0);
 
     const double voxelSize = grid->voxelSize()[0];
+    args.stat("voxel_size", voxelSize);
+    args.stat("active_voxels", uint64_t(grid->activeVoxelCount()));
+    args.stat("exterior_band_voxels", double(stats.exteriorBandVoxels));
+    args.stat("interior_band_voxels", double(stats.interiorBandVoxels));
+    args.stat("triangles", uint64_t(mesh.triangleCount()));
+    args.stat("sign", std::string(toString(stats.sign)));
+    args.stat("convert_seconds", convertSeconds);
+    args.stat("total_seconds", totalSeconds);
     out << "levelforge: wrote " << output << "\n"
         << "  grid '" << grid->getName() << "': voxel size " << fmt("%.6g", voxelSize)
         << " (world units), " << withThousands(grid->activeVoxelCount()) << " active voxels\n"

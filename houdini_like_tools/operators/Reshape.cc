@@ -5,6 +5,7 @@
 #include "Interrupt.h"
 #include "LevelSetInput.h"
 #include "Operator.h"
+#include "OperatorIO.h"
 #include "OperatorText.h"
 
 #include <levelforge/core/Exceptions.h>
@@ -26,17 +27,14 @@ void cookReshape(OperatorArgs& args)
     const auto t0 = Clock::now();
     const std::string& input = args.input("input");
     const std::string& output = args.output("output");
-    checkOutputPath(output);
+    checkOutputTarget(args, output);
     ReshapeOptions opt;
     opt.operation = reshapeOperationFromString(args.getString("op"));
     opt.offset = args.getFloat("offset");
     opt.worldUnits = args.getBool("world-units");
 
     openvdb::GridPtrVecPtr grids;
-    {
-        const ReadingScope reading;
-        grids = readGrids(input);
-    }
+    grids = readGridsInput(args, input);
     openvdb::FloatGrid::Ptr grid = pickLevelSet(*grids, input, args.has("grid-name") ? args.getString("grid-name") : "");
     CliProgress progress(10, !args.getBool("quiet"));
     opt.interrupter = &progress;
@@ -48,10 +46,14 @@ void cookReshape(OperatorArgs& args)
     for (const auto& g : *grids) result.push_back(g == grid ? out : g);
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsAtomic(output, result, fileMeta);
+    writeGridsOutput(args, output, result, fileMeta);
 
     const double h = out->voxelSize()[0];
     const double r = opt.worldUnits ? opt.offset / h : opt.offset;
+    args.stat("offset_voxels", r);
+    args.stat("active_voxels_before", uint64_t(grid->activeVoxelCount()));
+    args.stat("active_voxels", uint64_t(out->activeVoxelCount()));
+    args.stat("reshape_seconds", seconds);
     args.out() << "levelforge: wrote " << output << "\n"
                << "  grid '" << out->getName() << "': " << args.getString("op") << " by " << fmt("%g", r)
                << " voxels (" << fmt("%g", r * h) << " world units); " << withThousands(grid->activeVoxelCount())

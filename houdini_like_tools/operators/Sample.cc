@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // levelforge operator `sample`: the signed distance of an ADF or a level set at a world point.
 #include "Operator.h"
+#include "OperatorIO.h"
 #include "Interrupt.h"
 
 #include <levelforge/adf/AdaptiveDistanceField.h>
@@ -39,10 +40,7 @@ void cookSample(OperatorArgs& args)
                   parseCoordinate(args.input("z"), "z"));
     const std::string name = args.isSet("grid") ? args.getString("grid") : std::string();
     openvdb::GridPtrVecPtr grids;
-    {
-        const ReadingScope reading;
-        grids = readGrids(path);
-    }
+    grids = readGridsInput(args, path);
     openvdb::FloatGrid::Ptr grid;
     for (const auto& g : *grids)
         if (g->isType<openvdb::FloatGrid>() && (name.empty() || g->getName() == name)) {

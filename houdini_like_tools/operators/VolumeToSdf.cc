@@ -5,6 +5,7 @@
 #include "GridParams.h"
 #include "Interrupt.h"
 #include "Operator.h"
+#include "OperatorIO.h"
 #include "OperatorText.h"
 
 #include <levelforge/core/Exceptions.h>
@@ -129,7 +130,7 @@ VolumeToLevelSetOptions levelSetOptionsFrom(OperatorArgs& args)
 }
 
 /// Level-set metadata (widths in voxels of the smallest spacing hmin), the iso-value, atomic write.
-void writeVolumeLevelSet(const openvdb::FloatGrid::Ptr& grid, const VolumeToLevelSetOptions& opt, double hmin,
+void writeVolumeLevelSet(const OperatorArgs& args, const openvdb::FloatGrid::Ptr& grid, const VolumeToLevelSetOptions& opt, double hmin,
                          const std::string& input, const std::string& output, const std::string& method)
 {
     stampLevelSetMetadata(*grid, opt.exteriorWidth, opt.fillInterior ? grid->background() / hmin : opt.interiorWidth,
@@ -137,7 +138,7 @@ void writeVolumeLevelSet(const openvdb::FloatGrid::Ptr& grid, const VolumeToLeve
     grid->insertMeta(meta::kIso, openvdb::FloatMetadata(opt.iso));
     openvdb::MetaMap fileMeta;
     fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsAtomic(output, openvdb::GridPtrVec{grid}, fileMeta);
+    writeGridsOutput(args, output, openvdb::GridPtrVec{grid}, fileMeta);
 }
 
 /// --sparse: a .vdb grid converted on its own topology (SparseVolumeToLevelSet.h).
@@ -170,8 +171,10 @@ void cookSparse(OperatorArgs& args, const std::string& input, const std::string&
     if (opt.device == ComputeDevice::Vulkan)
         args.err() << "levelforge: warning: device vulkan: --sparse runs on the CPU (only the dense exact transform "
                       "of binary features runs on a device)\n";
-    writeVolumeLevelSet(grid, opt, grid->voxelSize()[0], input, output,
+    writeVolumeLevelSet(args, grid, opt, grid->voxelSize()[0], input, output,
                         std::string("satherley-jones-") + volumeDistanceMethodName(opt.method) + "-subvoxel-sparse");
+    args.stat("active_voxels", uint64_t(grid->activeVoxelCount()));
+    args.stat("convert_seconds", seconds);
     std::ostream& os = args.out();
     os << "levelforge: wrote " << output << "\n"
        << "  volume: grid '" << info.gridName << "' (" << volumeValueTypeName(info.sourceType) << ", "
@@ -199,7 +202,11 @@ void cookVolumeToSdf(OperatorArgs& args)
     const auto t0 = Clock::now();
     const std::string& input = args.input("volume");
     const std::string& output = args.output("output");
-    checkOutputPath(output);
+    checkOutputTarget(args, output);
+    if (isMemoryName(input)) {
+        throw UsageError("volume-to-sdf reads its volume from a file, not from '" + input +
+                         "'; write that grid to a .vdb file in an earlier step");
+    }
     if (args.getBool("sparse")) {
         cookSparse(args, input, output, t0);
         return;
@@ -215,10 +222,12 @@ void cookVolumeToSdf(OperatorArgs& args)
     const auto t1 = Clock::now();
     openvdb::FloatGrid::Ptr grid = volumeToLevelSet(volume, opt, &st);
     const double seconds = secondsSince(t1);
-    writeVolumeLevelSet(grid, opt, std::min({volume.spacing[0], volume.spacing[1], volume.spacing[2]}), input, output,
+    writeVolumeLevelSet(args, grid, opt, std::min({volume.spacing[0], volume.spacing[1], volume.spacing[2]}), input, output,
                         std::string("satherley-jones-") + volumeDistanceMethodName(opt.method) +
                             (opt.subvoxel ? "-subvoxel" : "-binary"));
 
+    args.stat("active_voxels", uint64_t(grid->activeVoxelCount()));
+    args.stat("convert_seconds", seconds);
     std::ostream& os = args.out();
     os << "levelforge: wrote " << output << "\n"
        << "  volume: " << volume.dims.x() << " x " << volume.dims.y() << " x " << volume.dims.z()

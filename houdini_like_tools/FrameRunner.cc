@@ -1,0 +1,314 @@
+// SPDX-License-Identifier: Apache-2.0
+// levelforge operators — frame loops and JSON reports (see FrameRunner.h).
+#include "FrameRunner.h"
+
+#include "Interrupt.h"
+#include "OperatorRegistry.h"
+
+#include "detail/AtomicFile.h"
+#include "detail/MessageText.h"
+
+#include <levelforge/core/Exceptions.h>
+#include <levelforge/io/VdbIO.h> // generatorString()
+
+#include <nlohmann/json.hpp>
+#include <tbb/info.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <chrono>
+#include <cstring>
+#include <mutex>
+#include <new>
+#include <ostream>
+#include <sstream>
+#include <thread>
+
+#include <unistd.h>
+
+namespace levelforge::ops {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::string oneLine(std::string msg)
+{
+    for (char& c : msg) {
+        if (c == '\n' || c == '\r') c = ' ';
+    }
+    while (!msg.empty() && msg.back() == ' ') msg.pop_back();
+    return msg.empty() ? std::string("unknown error") : msg;
+}
+
+/// What one cook gave: the exit code and the one-line error ("" when it worked).
+struct Outcome
+{
+    int code = kExitOk;
+    std::string error;
+    double seconds = 0;
+};
+
+/// Cooks and turns every exception into an exit code and a message (as runCli does).
+Outcome cookCaught(OperatorArgs& args)
+{
+    Outcome o;
+    const auto t0 = Clock::now();
+    try {
+        args.cook();
+    } catch (const UsageError& e) {
+        o = {kExitUsage, e.what()};
+    } catch (const InterruptedError& e) {
+        o = {kExitInterrupted, e.what()};
+    } catch (const std::bad_alloc&) {
+        o = {kExitFailure, "out of memory"};
+    } catch (const std::exception& e) {
+        o = {kExitFailure, message_internal::cutDependencyMessage(e.what(), 2000)};
+    } catch (...) {
+        o = {kExitFailure, "unknown failure"};
+    }
+    o.error = o.code == kExitOk ? std::string() : oneLine(o.error);
+    o.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    return o;
+}
+
+nlohmann::json toJson(const ParamValue& v)
+{
+    if (const auto* i = std::get_if<int64_t>(&v)) return *i;
+    if (const auto* d = std::get_if<double>(&v)) return *d;
+    if (const auto* b = std::get_if<bool>(&v)) return *b;
+    return std::get<std::string>(v);
+}
+
+nlohmann::json reportObject(const OperatorArgs& args, double seconds, const std::string& error)
+{
+    nlohmann::json j;
+    j["operator"] = args.spec().name();
+    if (args.frame()) j["frame"] = *args.frame();
+    nlohmann::json inputs = nlohmann::json::object(), outputs = nlohmann::json::object();
+    for (const Port& p : args.spec().inputs())
+        if (args.ports().count(p.name)) inputs[p.name] = args.ports().at(p.name);
+    for (const Port& p : args.spec().outputs())
+        if (args.ports().count(p.name)) outputs[p.name] = args.ports().at(p.name);
+    j["inputs"] = inputs;
+    j["outputs"] = outputs;
+    nlohmann::json params = nlohmann::json::object();
+    for (const auto& [name, value] : args.effectiveValues()) params[name] = toJson(value);
+    j["params"] = params;
+    nlohmann::json stats = nlohmann::json::object();
+    for (const auto& [name, value] : args.stats()) stats[name] = toJson(value);
+    j["stats"] = stats;
+    if (!args.stepReports().empty()) {
+        nlohmann::json steps = nlohmann::json::array();
+        for (const std::string& s : args.stepReports()) steps.push_back(nlohmann::json::parse(s));
+        j["steps"] = steps;
+    }
+    j["seconds"] = seconds;
+    j["status"] = error.empty() ? "ok" : "failed";
+    if (!error.empty()) j["error"] = error;
+    return j;
+}
+
+std::string durationText(double seconds)
+{
+    char buf[48];
+    if (seconds < 90) std::snprintf(buf, sizeof buf, "%.0f s", seconds);
+    else if (seconds < 5400) std::snprintf(buf, sizeof buf, "%.0f min", seconds / 60);
+    else std::snprintf(buf, sizeof buf, "%.1f h", seconds / 3600);
+    return buf;
+}
+
+/// With frames, an output file without a frame token would be written by every frame.
+void checkFrameOutputs(const OperatorArgs& args)
+{
+    for (const Port& p : args.spec().outputs()) {
+        if (!args.ports().count(p.name)) continue;
+        const std::string& path = args.ports().at(p.name);
+        if (path.empty() || path[0] == '@' || path == "/dev/null" || hasFrameToken(path)) continue;
+        throw UsageError("with --frames, the output <" + p.name + "> '" + path +
+                         "' needs a frame token ($F, $F4, %04d): every frame would write the same file");
+    }
+}
+
+int writeReport(const CommonOptions& common, const nlohmann::json& report, std::ostream& err)
+{
+    if (common.reportJson.empty()) return kExitOk;
+    try {
+        writeTextAtomic(common.reportJson, report.dump(2) + "\n");
+    } catch (const std::exception& e) {
+        err << "levelforge: error: " << oneLine(e.what()) << std::endl;
+        return kExitFailure;
+    }
+    return kExitOk;
+}
+
+} // namespace
+
+const std::vector<std::string>& commonOptionNames()
+{
+    static const std::vector<std::string> names{"frames", "jobs", "stop-on-error", "report-json", "plugin"};
+    return names;
+}
+
+std::string commonOptionsHelp()
+{
+    return "\nCommon options:\n"
+           "  --frames A-B[:step]         Frame Range: cook once per frame, replacing $F, $F4 and %04d in\n"
+           "                              paths and text parameters by the frame number.\n"
+           "  --jobs INT                  Jobs: frames cooked at the same time [default 1].\n"
+           "  --stop-on-error             Stop at the first frame that fails (default: report it, go on).\n"
+           "  --report-json FILE          Write the statistics of the cook (every frame, every step) as JSON.\n"
+           "  --plugin FILE               Load operators from a plugin library first (see docs/pipelines.md).\n";
+}
+
+std::string cookReportJson(const OperatorArgs& args, double seconds, const std::string& error)
+{
+    return reportObject(args, seconds, error).dump();
+}
+
+void writeTextAtomic(const std::string& path, const std::string& text)
+{
+    detail::AtomicFile file(path, "cannot write '" + path + "'");
+    const char* p = text.data();
+    size_t left = text.size();
+    while (left > 0) {
+        const ssize_t n = ::write(file.descriptor(), p, left);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) file.fail(std::strerror(errno));
+        p += n;
+        left -= size_t(n);
+    }
+    file.sync();
+    file.commit();
+}
+
+int cookWithCommonOptions(const OperatorArgs& args, const CommonOptions& common, std::ostream& out,
+                          std::ostream& err)
+{
+    nlohmann::json report;
+    report["levelforge"] = generatorString();
+    if (!common.frames) {
+        OperatorArgs a = args;
+        for (const Port& p : a.spec().outputs()) {
+            if (a.ports().count(p.name) && hasFrameToken(a.ports().at(p.name)) && a.spec().name() != "run") {
+                err << "levelforge: error: the output '" << a.ports().at(p.name)
+                    << "' has a frame token; give --frames A-B[:step] (see '" << "levelforge " << a.spec().name()
+                    << " --help')" << std::endl;
+                return kExitUsage;
+            }
+        }
+        const Outcome o = cookCaught(a);
+        if (o.code != kExitOk) err << "levelforge: error: " << o.error << std::endl;
+        report.update(reportObject(a, o.seconds, o.error));
+        const int rc = writeReport(common, report, err);
+        return o.code != kExitOk ? o.code : rc;
+    }
+
+    try {
+        checkFrameOutputs(args);
+    } catch (const UsageError& e) {
+        err << "levelforge: error: " << oneLine(e.what()) << " (see 'levelforge " << args.spec().name()
+            << " --help')" << std::endl;
+        return kExitUsage;
+    }
+    const std::vector<int> frames = common.frames->frames();
+    const size_t n = frames.size();
+    const int jobs = int(std::max<size_t>(1, std::min<size_t>(size_t(std::max(common.jobs, 1)), n)));
+    const int threadsPerJob = std::max(1, tbb::info::default_concurrency() / jobs);
+
+    std::vector<Outcome> outcomes(n);
+    std::vector<nlohmann::json> frameReports(n);
+    std::atomic<size_t> next{0}, finished{0};
+    std::atomic<bool> stop{false};
+    std::mutex printing;
+    const auto t0 = Clock::now();
+
+    auto worker = [&]() {
+        tbb::task_arena arena(threadsPerJob);
+        for (;;) {
+            if (stop.load() || interruptRequested()) return;
+            const size_t i = next.fetch_add(1);
+            if (i >= n) return;
+            const int frame = frames[i];
+            OperatorArgs a = args.forFrame(frame);
+            std::ostringstream fout, ferr;
+            if (jobs > 1) a.setStreams(fout, ferr);
+            Outcome o;
+            {
+                const ProgressPrefixScope prefix("frame " + std::to_string(frame) + " (" + std::to_string(i + 1) +
+                                                 "/" + std::to_string(n) + "): " +
+                                                 ProgressPrefixScope::current());
+                std::optional<SilentProgressScope> silent;
+                if (jobs > 1) silent.emplace();
+                arena.execute([&] { o = cookCaught(a); });
+            }
+            outcomes[i] = o;
+            frameReports[i] = reportObject(a, o.seconds, o.error);
+            const size_t done = finished.fetch_add(1) + 1;
+            {
+                const std::lock_guard<std::mutex> lock(printing);
+                if (jobs > 1) {
+                    out << fout.str();
+                    err << ferr.str();
+                }
+                if (o.code != kExitOk) {
+                    err << "levelforge: error: frame " << frame << ": " << o.error << std::endl;
+                } else if (jobs > 1) {
+                    const double elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
+                    char secs[32];
+                    std::snprintf(secs, sizeof secs, "%.2f s", o.seconds);
+                    err << "levelforge: frame " << frame << " done (" << done << "/" << n << ", " << secs;
+                    if (done < n) err << ", ETA " << durationText(elapsed / double(done) * double(n - done));
+                    err << ")" << std::endl;
+                }
+                out.flush();
+            }
+            if (o.code == kExitInterrupted || (o.code != kExitOk && common.stopOnError)) stop.store(true);
+        }
+    };
+    std::vector<std::thread> threads;
+    for (int j = 1; j < jobs; ++j) threads.emplace_back(worker);
+    worker();
+    for (std::thread& t : threads) t.join();
+
+    size_t ok = 0, failed = 0, skipped = 0;
+    bool interrupted = interruptRequested();
+    std::string failedList;
+    nlohmann::json list = nlohmann::json::array();
+    for (size_t i = 0; i < n; ++i) {
+        if (frameReports[i].is_null()) {
+            ++skipped;
+            continue;
+        }
+        list.push_back(frameReports[i]);
+        if (outcomes[i].code == kExitOk) {
+            ++ok;
+            continue;
+        }
+        if (outcomes[i].code == kExitInterrupted) interrupted = true;
+        if (++failed <= 10) failedList += (failedList.empty() ? "" : ", ") + std::to_string(frames[i]);
+    }
+    if (failed > 10) failedList += ", ...";
+    out << "levelforge: frames " << common.frames->text() << ": " << ok << " of " << n << " done";
+    if (failed) out << ", " << failed << " failed (" << failedList << ")";
+    if (skipped) out << ", " << skipped << " not cooked";
+    char total[32];
+    std::snprintf(total, sizeof total, "%.2f s", std::chrono::duration<double>(Clock::now() - t0).count());
+    out << "; " << total << " with " << jobs
+        << (jobs == 1 ? " job" : " jobs") << "\n";
+    out.flush();
+    report["operator"] = args.spec().name();
+    report["frames"] = list;
+    report["summary"] = {{"frames", n}, {"done", ok}, {"failed", failed}, {"not_cooked", skipped}, {"jobs", jobs}};
+    const int rc = writeReport(common, report, err);
+    if (interrupted) {
+        err << "levelforge: error: interrupted" << std::endl;
+        return kExitInterrupted;
+    }
+    if (failed) return kExitFailure;
+    return rc;
+}
+
+} // namespace levelforge::ops
