@@ -83,6 +83,9 @@ TriangleMesh levelSetToMesh(const openvdb::FloatGrid& grid, const LevelSetToMesh
         add(t[0], t[1], t[2]);
     }
 
+    std::vector<openvdb::Vec4I>().swap(quads); // free as we go: the peak is the float and double points
+    std::vector<openvdb::Vec3I>().swap(triangles);
+
     // Keep only the points the triangles use, in OpenVDB's order.
     std::vector<uint32_t> remap(points.size(), kUnused);
     for (const Vec3I& t : mesh.triangles)
@@ -97,6 +100,7 @@ TriangleMesh levelSetToMesh(const openvdb::FloatGrid& grid, const LevelSetToMesh
         const openvdb::Vec3s& p = points[i];
         mesh.points.emplace_back(double(p[0]), double(p[1]), double(p[2]));
     }
+    std::vector<openvdb::Vec3s>().swap(points);
     for (Vec3I& t : mesh.triangles)
         for (int k = 0; k < 3; ++k) t[k] = remap[t[k]];
 
