@@ -140,7 +140,6 @@ LEVELFORGE_REGISTER_OPERATOR(
         .param(Param::integer("index", "Slice Index",
                               "Index coordinate of the slice along --axis, voxels (default: the middle of the "
                               "active bounding box)")
-                   .range(-2147483648.0, 2147483647.0)
                    .exclusiveWith("world"))
         .param(Param::floating("world", "Slice Position",
                                "World coordinate of the slice along --axis, world units (the nearest voxel "
