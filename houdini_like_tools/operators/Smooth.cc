@@ -83,7 +83,7 @@ LEVELFORGE_REGISTER_OPERATOR(
                              "median; mean-curvature: curvature flow; laplacian: Laplacian flow",
                              {"mean", "gaussian", "median", "mean-curvature", "laplacian"})
                    .defaultValue("mean"))
-        .param(Param::integer("iterations", "Iterations", "How many times the filter is applied")
+        .param(Param::integer("iterations", "Iterations", "Passes of the filter")
                    .defaultValue(1)
                    .range(1, 1000))
         .param(Param::integer("radius", "Filter Voxel Radius",
