@@ -20,6 +20,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
 #include <mutex>
 #include <new>
@@ -148,7 +149,8 @@ int writeReport(const CommonOptions& common, const nlohmann::json& report, std::
 
 const std::vector<std::string>& commonOptionNames()
 {
-    static const std::vector<std::string> names{"frames", "jobs", "stop-on-error", "report-json", "plugin"};
+    static const std::vector<std::string> names{"frames",      "jobs",       "stop-on-error", "report-json",
+                                                "task-index",  "task-count", "plugin"};
     return names;
 }
 
@@ -160,7 +162,71 @@ std::string commonOptionsHelp()
            "  --jobs INT                  Jobs: frames cooked at the same time [default 1].\n"
            "  --stop-on-error             Stop at the first frame that fails (default: report it, go on).\n"
            "  --report-json FILE          Write the statistics of the cook (every frame, every step) as JSON.\n"
+           "  --task-index INT            Task Index: with --frames, cook only this farm task's share (0-based;\n"
+           "                              default from SLURM_ARRAY_TASK_ID or LEVELFORGE_TASK_INDEX).\n"
+           "  --task-count INT            Task Count: the number of farm tasks sharing the frames.\n"
            "  --plugin FILE               Load operators from a plugin library first (see docs/pipelines.md).\n";
+}
+
+namespace {
+
+std::optional<long long> envInteger(const char* name)
+{
+    const char* v = std::getenv(name);
+    if (!v || !*v) return std::nullopt;
+    char* end = nullptr;
+    errno = 0;
+    const long long x = std::strtoll(v, &end, 10);
+    if (errno || *end != '\0' || x < -1000000000LL || x > 1000000000LL)
+        throw UsageError(std::string("the environment variable ") + name + "='" + v + "' is not an integer");
+    return x;
+}
+
+} // namespace
+
+TaskShare taskShare(const CommonOptions& common)
+{
+    TaskShare t;
+    long long index = 0, count = 1;
+    if (common.taskIndex || common.taskCount) {
+        if (!common.taskIndex || !common.taskCount)
+            throw UsageError("give --task-index and --task-count together");
+        index = *common.taskIndex;
+        count = *common.taskCount;
+        t.source = "--task-index";
+    } else if (const auto id = envInteger("SLURM_ARRAY_TASK_ID")) {
+        const auto min = envInteger("SLURM_ARRAY_TASK_MIN");
+        const auto max = envInteger("SLURM_ARRAY_TASK_MAX");
+        const auto n = envInteger("SLURM_ARRAY_TASK_COUNT");
+        index = *id - min.value_or(0);
+        if (n) count = *n;
+        else if (min && max) count = *max - *min + 1;
+        else throw UsageError("SLURM_ARRAY_TASK_ID is set but neither SLURM_ARRAY_TASK_COUNT nor SLURM_ARRAY_TASK_MIN/MAX");
+        t.source = "SLURM_ARRAY_TASK_ID=" + std::to_string(*id);
+    } else if (const auto li = envInteger("LEVELFORGE_TASK_INDEX")) {
+        const auto lc = envInteger("LEVELFORGE_TASK_COUNT");
+        if (!lc) throw UsageError("LEVELFORGE_TASK_INDEX is set but LEVELFORGE_TASK_COUNT is not");
+        index = *li;
+        count = *lc;
+        t.source = "LEVELFORGE_TASK_INDEX=" + std::to_string(*li);
+    } else {
+        return t;
+    }
+    if (count < 1) throw UsageError("the task count must be at least 1, got " + std::to_string(count) + " (" + t.source + ")");
+    if (index < 0 || index >= count)
+        throw UsageError("the task index must be in [0, " + std::to_string(count) + "), got " + std::to_string(index) + " (" +
+                         t.source + ")");
+    t.index = int(index);
+    t.count = int(count);
+    return t;
+}
+
+std::vector<int> taskFrames(const std::vector<int>& frames, int index, int count)
+{
+    const size_t n = frames.size();
+    const size_t begin = size_t((unsigned long long)(n) * unsigned(index) / unsigned(count));
+    const size_t end = size_t((unsigned long long)(n) * unsigned(index + 1) / unsigned(count));
+    return std::vector<int>(frames.begin() + long(begin), frames.begin() + long(end));
 }
 
 std::string cookReportJson(const OperatorArgs& args, double seconds, const std::string& error)
@@ -190,6 +256,11 @@ int cookWithCommonOptions(const OperatorArgs& args, const CommonOptions& common,
     nlohmann::json report;
     report["levelforge"] = generatorString();
     if (!common.frames) {
+        if (common.taskIndex || common.taskCount) {
+            err << "levelforge: error: --task-index and --task-count split the frames of --frames; give --frames A-B"
+                << std::endl;
+            return kExitUsage;
+        }
         OperatorArgs a = args;
         for (const Port& p : a.spec().outputs()) {
             if (a.ports().count(p.name) && hasFrameToken(a.ports().at(p.name)) && a.spec().name() != "run") {
@@ -213,7 +284,20 @@ int cookWithCommonOptions(const OperatorArgs& args, const CommonOptions& common,
             << " --help')" << std::endl;
         return kExitUsage;
     }
-    const std::vector<int> frames = common.frames->frames();
+    std::vector<int> frames = common.frames->frames();
+    TaskShare task;
+    try {
+        task = taskShare(common);
+    } catch (const UsageError& e) {
+        err << "levelforge: error: " << oneLine(e.what()) << std::endl;
+        return kExitUsage;
+    }
+    if (task.count > 1) {
+        frames = taskFrames(frames, task.index, task.count);
+        err << "levelforge: task " << task.index << " of " << task.count << " (" << task.source << "): ";
+        if (frames.empty()) err << "no frames" << std::endl;
+        else err << "frames " << frames.front() << "-" << frames.back() << " (" << frames.size() << ")" << std::endl;
+    }
     const size_t n = frames.size();
     const int jobs = int(std::max<size_t>(1, std::min<size_t>(size_t(std::max(common.jobs, 1)), n)));
     const int threadsPerJob = std::max(1, tbb::info::default_concurrency() / jobs);
@@ -301,7 +385,8 @@ int cookWithCommonOptions(const OperatorArgs& args, const CommonOptions& common,
     out.flush();
     report["operator"] = args.spec().name();
     report["frames"] = list;
-    report["summary"] = {{"frames", n}, {"done", ok}, {"failed", failed}, {"not_cooked", skipped}, {"jobs", jobs}};
+    report["summary"] = {{"frames", n}, {"done", ok}, {"failed", failed}, {"not_cooked", skipped}, {"jobs", jobs},
+                         {"task_index", task.index}, {"task_count", task.count}};
     const int rc = writeReport(common, report, err);
     if (interrupted) {
         err << "levelforge: error: interrupted" << std::endl;

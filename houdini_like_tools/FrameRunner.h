@@ -30,7 +30,29 @@ struct CommonOptions
     int jobs = 1;                     ///< --jobs: frames cooked at the same time
     bool stopOnError = false;         ///< --stop-on-error
     std::string reportJson;           ///< --report-json FILE; empty: none
+    /// --task-index / --task-count: this farm task's share of the frames (0-based index);
+    /// nullopt: all frames (or the share the scheduler's environment gives, see taskShare()).
+    std::optional<int> taskIndex, taskCount;
 };
+
+/// A farm task's share of a frame sequence.
+struct TaskShare
+{
+    int index = 0, count = 1; ///< 0-based task index, number of tasks
+    std::string source;       ///< "--task-index", "SLURM_ARRAY_TASK_ID=4", or "" (no split)
+};
+
+/// @brief Which task this is: --task-index/--task-count when given, else Slurm's array
+///        variables (SLURM_ARRAY_TASK_ID minus SLURM_ARRAY_TASK_MIN, and SLURM_ARRAY_TASK_COUNT or
+///        MAX - MIN + 1), else the generic LEVELFORGE_TASK_INDEX / LEVELFORGE_TASK_COUNT, else one
+///        task of one.
+/// @throws UsageError an index without a count (or the reverse), a count below 1, an index
+///         outside [0, count), or a variable that is not an integer (naming it)
+TaskShare taskShare(const CommonOptions& common);
+
+/// @brief The frames of task @p index of @p count: contiguous blocks of equal size (± 1 frame),
+///        in order; every frame belongs to exactly one task. A task beyond the frames gets none.
+std::vector<int> taskFrames(const std::vector<int>& frames, int index, int count);
 
 /// Names reserved for the common options; no operator may declare a parameter with one of them.
 const std::vector<std::string>& commonOptionNames();

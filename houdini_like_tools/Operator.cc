@@ -332,7 +332,8 @@ void OperatorSpec::checkDeclaration() const
     if (mHelp.empty()) bad("no help text");
     if (!mCook) bad("no cook function");
     // "help" and the common options every operator has (FrameRunner.h) are reserved
-    std::set<std::string> names{"help", "frames", "jobs", "stop-on-error", "report-json", "plugin"};
+    std::set<std::string> names{"help",       "frames",     "jobs",  "stop-on-error", "report-json",
+                                "task-index", "task-count", "plugin"};
     for (const Port& port : mInputs) {
         if (!validName(port.name)) bad("input '" + port.name + "' is not kebab-case");
         if (!names.insert(port.name).second) bad("duplicate name '" + port.name + "'");

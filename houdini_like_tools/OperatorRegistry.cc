@@ -50,7 +50,10 @@ struct Collected
     // the common options (FrameRunner.h)
     std::string frames, reportJson;
     int jobs = 1;
+    int taskIndex = 0, taskCount = 1;
     int64_t stopOnError = 0;
+    CLI::Option* taskIndexOption = nullptr;
+    CLI::Option* taskCountOption = nullptr;
     std::vector<std::string> plugins;
     CLI::Option* framesOption = nullptr;
 };
@@ -172,6 +175,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
             sub->add_option("--jobs", c.jobs, "Jobs")->check(CLI::Range(1, 1024));
             sub->add_flag("--stop-on-error", c.stopOnError, "Stop On Error");
             sub->add_option("--report-json", c.reportJson, "Report File");
+            c.taskIndexOption = sub->add_option("--task-index", c.taskIndex, "Task Index")->check(CLI::NonNegativeNumber);
+            c.taskCountOption = sub->add_option("--task-count", c.taskCount, "Task Count")->check(CLI::PositiveNumber);
             sub->add_option("--plugin", c.plugins, "Plugin")->expected(1)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
             for (const Param& p : spec->params()) {
                 if (p.type == ParamType::Bool) {
@@ -246,6 +251,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
         common.jobs = c.jobs;
         common.stopOnError = c.stopOnError > 0;
         common.reportJson = c.reportJson;
+        if (c.taskIndexOption->count() > 0) common.taskIndex = c.taskIndex;
+        if (c.taskCountOption->count() > 0) common.taskCount = c.taskCount;
         try {
             if (c.framesOption->count() > 0) common.frames = parseFrameRange(c.frames);
         } catch (const UsageError& e) {
