@@ -9,6 +9,7 @@
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/MeshValidation.h>
+#include <levelforge/distributed/DistributedMeshToSdf.h>
 #include <levelforge/io/MeshIO.h>
 #include <levelforge/io/VdbIO.h>
 #include <levelforge/pipeline/MeshToSdf.h>
@@ -19,8 +20,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <iostream>
 #include <ostream>
 #include <string>
+
+#include <unistd.h>
 
 namespace levelforge::ops {
 namespace {
@@ -80,8 +84,150 @@ void printScanStats(std::ostream& os, const TetScanStats& s)
        << ", finish " << fmt("%.3f", s.secondsFinish) << "\n";
 }
 
+/// `--distributed`: one conversion on every rank of `mpirun` (distributed/DistributedMeshToSdf.h).
+/// Every rank reads the mesh and computes its bricks; rank 0 gathers, writes and prints. Each step
+/// that can fail on one rank alone runs under runOnAllRanks(), so that every rank stops with the
+/// same error; the other ranks print nothing (rank 0 prints the one error line).
+void cookDistributed(OperatorArgs& args)
+{
+    using Clock = std::chrono::steady_clock;
+    const auto t0 = Clock::now();
+    // One conversion per mpirun: frames (cooked side by side with --jobs, in any order per rank)
+    // would mix their collectives; MPI is called from the process's main thread only.
+    if (args.frame())
+        throw UsageError("--distributed converts one mesh per mpirun, not a --frames sequence (run mpirun once per "
+                         "frame, or share the frames out with --task-index / --task-count)");
+    if (gettid() != getpid())
+        throw UsageError("--distributed runs on the process's main thread only (not in a parallel pipeline step)");
+    const int rank = distributedRank(); // built without MPI: the error says how to get it
+    const int ranks = distributedSize();
+    const bool root = rank == 0;
+    if (!root) {
+        for (std::ostream* os : {&args.out(), &args.err(), static_cast<std::ostream*>(&std::cout),
+                                 static_cast<std::ostream*>(&std::cerr)})
+            os->setstate(std::ios::badbit);
+    }
+    const std::string& input = args.input("mesh");
+    const std::string& output = args.output("output");
+    const bool quiet = args.getBool("quiet");
+    const bool report = args.getBool("report");
+    std::ostream& out = args.out();
+    std::ostream& err = args.err();
+    const int64_t brick = args.getInt("brick-size");
+    int brickLog2 = 3;
+    while ((int64_t(1) << brickLog2) < brick) ++brickLog2;
+    if ((int64_t(1) << brickLog2) != brick)
+        throw UsageError("invalid value " + std::to_string(brick) + " for --brick-size: a power of two from 8 to 4096");
+    if (isMemoryName(output))
+        throw UsageError("--distributed writes a .vdb file (rank 0 gathers the grid), not the in-memory slot " + output);
+    if (args.isSet("reference"))
+        throw UsageError("--distributed supports no --reference yet (docs/distributed.md)");
+
+    runOnAllRanks([&] { if (root) checkOutputTarget(args, output); });
+    TriangleMesh mesh;
+    MeshReport validation;
+    MeshToSdfOptions options;
+    CliProgress progress(10, root && !quiet);
+    runOnAllRanks([&] {
+        MeshReadInfo info;
+        mesh = readMeshInput(args, input, &info);
+        if (info.droppedFaces > 0)
+            err << "levelforge: warning: " << input << ": " << info.droppedFaces
+                << " faces with fewer than three distinct corners were dropped\n";
+        if (info.fanFallbacks > 0)
+            err << "levelforge: warning: " << input << ": " << info.fanFallbacks
+                << " polygons could not be ear-clipped and were fan-triangulated\n";
+        validation = validateMesh(mesh);
+        if (report) out << validation.summary() << "\n";
+        for (const std::string& warning : validation.warnings()) err << "levelforge: warning: " << warning << "\n";
+        readGridParams(args, options);
+        if (args.isSet("fog-grid")) options.fogGridName = args.getString("fog-grid");
+        if (args.isSet("primitive-index-grid")) options.primitiveIndexGridName = args.getString("primitive-index-grid");
+        if (args.isSet("attribute")) options.attributes.push_back(args.getString("attribute"));
+        options.sign = signModeFromString(args.getString("sign"));
+        options.fillInterior = args.getBool("fill-interior");
+        options.windingAccuracy = args.getFloat("winding-accuracy");
+        options.device = parseComputeDevice(args.getString("device"));
+        options.validation = &validation;
+        options.method = bandMethodFromString(args.getString("method"));
+        options.expansion = expansionFromString(args.getString("expansion"));
+        options.exactBandVoxels = args.getFloat("exact-band");
+        options.source = mesh.source.empty() ? input : mesh.source;
+        options.interrupter = &progress; // drawn by rank 0 only; Ctrl-C stops every rank
+        checkDistributable(mesh, options);
+        if (!validation.closed() && options.sign == SignMode::Pseudonormal)
+            err << "levelforge: warning: " << options.source
+                << ": the mesh is not closed; inside/outside is the pseudonormal's verdict and may be "
+                   "wrong away from the surface\n";
+    });
+
+    DistributedStats ds;
+    const openvdb::FloatGrid::Ptr grid = distributedMeshToSdf(mesh, options, brickLog2, &ds);
+    runOnAllRanks([&] {
+        if (!root) return;
+        openvdb::MetaMap fileMeta;
+        fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
+        writeGridsOutput(args, output, {grid}, fileMeta);
+    });
+    if (!root) return;
+    const double totalSeconds = secondsSince(t0);
+    const double voxelSize = grid->voxelSize()[0];
+    double maxPeak = 0.0, maxSeconds = 0.0, gatheredMiB = 0.0;
+    for (int r = 0; r < ranks; ++r) {
+        if (r > 0) gatheredMiB += double(ds.rankBytes[size_t(r)]) / 1048576.0;
+        maxPeak = std::max(maxPeak, ds.rankPeakMiB[size_t(r)]);
+        maxSeconds = std::max(maxSeconds, ds.rankSeconds[size_t(r)]);
+    }
+    args.stat("voxel_size", voxelSize);
+    args.stat("active_voxels", uint64_t(grid->activeVoxelCount()));
+    args.stat("exterior_band_voxels", double(ds.sdf.exteriorBandVoxels));
+    args.stat("interior_band_voxels", double(ds.sdf.interiorBandVoxels));
+    args.stat("triangles", uint64_t(mesh.triangleCount()));
+    args.stat("sign", std::string(toString(ds.sdf.sign)));
+    args.stat("ranks", int64_t(ranks));
+    args.stat("bricks", uint64_t(ds.bricks));
+    args.stat("convert_seconds", ds.seconds);
+    args.stat("gather_seconds", ds.secondsGather);
+    args.stat("max_rank_seconds", maxSeconds);
+    args.stat("max_rank_peak_mib", maxPeak);
+    args.stat("total_seconds", totalSeconds);
+    out << "levelforge: wrote " << output << "\n"
+        << "  grid '" << grid->getName() << "': voxel size " << fmt("%.6g", voxelSize)
+        << " (world units), " << withThousands(grid->activeVoxelCount()) << " active voxels\n"
+        << "  band: " << fmt("%g", ds.sdf.exteriorBandVoxels) << " voxels outside, "
+        << fmt("%g", ds.sdf.interiorBandVoxels) << " voxels inside\n"
+        << "  mesh: " << withThousands(mesh.triangleCount()) << " triangles, "
+        << withThousands(mesh.vertexCount()) << " vertices\n"
+        << "  sign: " << toString(ds.sdf.sign) << " (" << ds.sdf.signReason << ")"
+        << (options.fillInterior ? ", interior filled" : "") << "\n"
+        << "  distributed: " << ranks << (ranks == 1 ? " rank, " : " ranks, ") << withThousands(ds.bricks)
+        << " bricks of " << brick << "^3 voxels; gathered " << fmt("%.1f", gatheredMiB)
+        << " MiB to rank 0\n"
+        << "  time: " << fmt("%.2f", ds.seconds) << " s conversion (bricks " << fmt("%.2f", ds.secondsDecompose)
+        << " s, slowest rank " << fmt("%.2f", maxSeconds)
+        << " s, gather " << fmt("%.2f", ds.secondsGather) << " s, finish " << fmt("%.2f", ds.secondsFinish)
+        << " s), " << fmt("%.2f", totalSeconds) << " s total\n";
+    if (report) {
+        out << "  ranks: rank, bricks, estimated band voxels, triangles, active voxels, seconds, peak MiB (computed, "
+               "end)\n";
+        for (int r = 0; r < ranks; ++r)
+            out << "    " << r << ": " << withThousands(ds.rankBricks[size_t(r)]) << ", "
+                << withThousands(uint64_t(ds.rankEstimate[size_t(r)])) << ", "
+                << withThousands(ds.rankTriangles[size_t(r)]) << ", " << withThousands(ds.rankActiveVoxels[size_t(r)])
+                << ", " << fmt("%.2f", ds.rankSeconds[size_t(r)]) << ", " << fmt("%.1f", ds.rankPartPeakMiB[size_t(r)])
+                << ", " << fmt("%.1f", ds.rankPeakMiB[size_t(r)])
+                << "\n";
+        if (options.fillInterior)
+            out << "  fill interior: " << withThousands(ds.sdf.filledVoxels) << " voxels activated (tiles by volume)\n";
+    }
+}
+
 void cookMeshToSdf(OperatorArgs& args)
 {
+    if (args.getBool("distributed")) {
+        cookDistributed(args);
+        return;
+    }
     using Clock = std::chrono::steady_clock;
     const auto t0 = Clock::now();
     const std::string& input = args.input("mesh");
@@ -332,6 +478,19 @@ LEVELFORGE_REGISTER_OPERATOR(
                              "its exact closest point on the surface (OBJ vt/vn per face corner: seams are "
                              "kept). Needs --method chang, --expansion none and no --fill-interior")
                     .repeat())
+        .param(Param::flag("distributed", "Distributed (MPI)",
+                           "Run as one conversion on every rank of mpirun (mpirun -n 4 levelforge mesh-to-sdf "
+                           "--distributed ...): the index space is cut into bricks of --brick-size voxels "
+                           "balanced by estimated band voxels, each rank computes its bricks, rank 0 gathers "
+                           "and writes one .vdb, bit-identical to the single-process output. Supports --method "
+                           "chang, --expansion none and the pseudonormal or unsigned sign (auto on a closed "
+                           "mesh), with or without --fill-interior (docs/distributed.md). Needs levelforge "
+                           "built with MPI (libopenmpi-dev)"))
+        .param(Param::integer("brick-size", "Brick Size",
+                              "--distributed: width of the bricks the index space is cut into, in voxels (a "
+                              "power of two; 128 = the level-1 internal nodes of a float tree)")
+                   .defaultValue(128)
+                   .range(8, 4096))
         .param(Param::flag("quiet", "Quiet", "Print no progress on stderr"))
         .param(Param::flag("report", "Report",
                            "Print the mesh validation summary and conversion statistics"))
@@ -346,6 +505,7 @@ LEVELFORGE_REGISTER_OPERATOR(
                  "--primitive-index-grid primitive")
         .example("levelforge mesh-to-sdf prop.obj prop.vdb --reference set.vdb")
         .example("levelforge mesh-to-sdf scan.ply scan.vdb --voxel-size 0.01 --attribute Cd,N")
+        .example("mpirun -n 4 levelforge mesh-to-sdf statue.obj statue.vdb --voxel-count 4096 --distributed")
         .cook(cookMeshToSdf));
 
 } // namespace levelforge::ops

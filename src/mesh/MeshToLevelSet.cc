@@ -513,6 +513,11 @@ private:
     int mBlock; // blocks this many leaves wide (about the reach) are marked whole
 };
 
+// onlyLeavesIn (MeshToLevelSetBricks.cc): the boxes as a mask at leaf resolution (coordinate =
+// leaf origin / 8), and whether a leaf-resolution box meets it.
+void leafBoxMask(const std::vector<openvdb::CoordBBox>& boxes, openvdb::MaskTree& mask);
+bool meetsLeafBoxMask(const openvdb::MaskTree& mask, const openvdb::CoordBBox& q);
+
 void checkWidth(const char* name, float w)
 {
     if (!std::isfinite(w) || w <= 0.0f) {
@@ -540,6 +545,12 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     const bool winding = mode == SignMode::Winding, unsignedMode = mode == SignMode::Unsigned;
     if (options.fillInterior && unsignedMode)
         throw InvalidArgumentError("fill interior needs an inside: it cannot be combined with the unsigned sign mode");
+    const bool restricted = options.onlyLeavesIn != nullptr;
+    if (restricted && (winding || options.fillInterior))
+        throw InvalidArgumentError(std::string("a conversion restricted to bricks (onlyLeavesIn) supports the "
+                                               "pseudonormal and unsigned sign modes without fill interior, not ") +
+                                   (winding ? "the winding number (" + stats.signReason + ")" : "fill interior") +
+                                   ": those are passes over the whole tree");
     if (winding && !(options.windingAccuracy > 1.0 && std::isfinite(options.windingAccuracy))) {
         std::ostringstream os;
         os << "the winding accuracy (beta) must be a finite number above 1, got " << options.windingAccuracy;
@@ -581,14 +592,51 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     LazyPseudoNormals normals(mesh);
     std::vector<uint32_t> use;
     use.reserve(mesh.triangles.size());
+    // onlyLeavesIn: the triangles within the limit (plus a voxel for the margin) of a box's leaves
+    openvdb::MaskTree onlyLeaves;
+    if (restricted) leafBoxMask(*options.onlyLeavesIn, onlyLeaves);
+    uint64_t usable = 0;
     for (uint32_t t = 0; t < mesh.triangles.size(); ++t) {
         if (normals.isDegenerate(t)) { ++stats.skippedDegenerate; continue; }
+        ++usable;
+        if (restricted) {
+            const Vec3I& tri = mesh.triangles[t];
+            openvdb::Coord a, b;
+            for (int k = 0; k < 3; ++k) {
+                const double lo = std::min({cellPts[tri[0]][k], cellPts[tri[1]][k], cellPts[tri[2]][k]});
+                const double hi = std::max({cellPts[tri[0]][k], cellPts[tri[1]][k], cellPts[tri[2]][k]});
+                a[k] = int(std::floor((lo - limit - 1.0 - 7.5) / 8.0)); // leaves whose voxel centres
+                b[k] = int(std::ceil((hi + limit + 1.0 - 0.5) / 8.0));  // [o + 0.5, o + 7.5] come near
+            }
+            if (!meetsLeafBoxMask(onlyLeaves, openvdb::CoordBBox(a, b))) continue;
+        }
         use.push_back(t);
     }
     stats.triangles = use.size();
-    if (use.empty())
+    if (usable == 0)
         throw InvalidMeshError((mesh.source.empty() ? std::string("mesh") : mesh.source) +
                                ": every triangle is degenerate (zero area)");
+    if (use.empty()) { // restricted to bricks that no triangle's band reaches: no leaves
+        auto grid = openvdb::FloatGrid::create(float(extW * h));
+        grid->setTransform(openvdb::math::Transform::createLinearTransform(h));
+        grid->setGridClass(unsignedMode ? openvdb::GRID_UNKNOWN : openvdb::GRID_LEVEL_SET);
+        grid->setName(options.gridName);
+        grid->insertMeta(kSignMetadata, openvdb::StringMetadata(toString(mode)));
+        LevelSetWithClosestPoints result;
+        result.levelSet = grid;
+        if (wantClosest) {
+            result.closestPoints = openvdb::Vec3fGrid::create(openvdb::Vec3f(0.0f));
+            result.closestPoints->setTransform(grid->transform().copy());
+            result.closestPoints->setName(options.gridName + "_closest");
+            result.closestPoints->setVectorType(openvdb::VEC_CONTRAVARIANT_RELATIVE);
+            result.closestTriangles = openvdb::Int32Grid::create(-1);
+            result.closestTriangles->setTransform(grid->transform().copy());
+            result.closestTriangles->setName(options.gridName + "_triangle");
+        }
+        if (interrupter) { interrupter->wasInterrupted(100); interrupter->end(); }
+        if (statsOut) *statsOut = stats;
+        return result;
+    }
 
     // The main memory guard comes after the hierarchy: the candidate leaves below are the band's
     // real volume at leaf resolution. But the hierarchy splits triangles longer than 8 cells
@@ -662,6 +710,7 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     openvdb::MaskTree leafMask;
     for (auto& m : maskTls) leafMask.topologyUnion(m);
     maskTls.clear();
+    if (restricted) leafMask.topologyIntersection(onlyLeaves); // this brick set's leaves only
     const uint64_t leafCount = leafMask.activeVoxelCount();
     // output leaves (values + mask + pointers) and each thread's scratch (frontier, box levels,
     // block buffers: about 1 MiB at the largest frontier)
@@ -750,7 +799,9 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     for (LeafResult& l : outLeaves)
         if (l.sdf) { tree->addLeaf(l.sdf.get()); (void)l.sdf.release(); }
     openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(h);
-    if (mode == SignMode::Pseudonormal) {
+    if (restricted) {
+        // the leaves only: the caller finishes the union of all parts (onlyLeavesIn)
+    } else if (mode == SignMode::Pseudonormal) {
         openvdb::tools::signedFloodFill(*tree);
     } else if (winding) {
         // the tiles' signs (the leaves are signed); leaves kept only for their inactive signs

@@ -67,6 +67,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace levelforge {
 
@@ -127,6 +128,21 @@ struct MeshToLevelSetOptions : GridSpec
     uint64_t deviceMemoryBudget = 0;  ///< bytes per batch slot on the device; 0: automatic
     uint64_t deviceMinLeaves = 8192;  ///< Auto: smaller bands stay on the CPU
     /// @}
+
+    /// @brief Brick restriction of distributed runs (distributed/DistributedMeshToSdf.h); null
+    ///        (default): the whole band. Not owned.
+    ///
+    /// When set (even to an empty list), only the output leaves whose origin lies in one of these
+    /// index-space boxes are computed, and only the triangles that come within the band limit
+    /// (plus one voxel) of a box enter the closest-triangle hierarchy. Each leaf computed is
+    /// bit-identical to the same leaf of the unrestricted run: a voxel's value depends only on
+    /// the triangles within the band limit of it, and ties between equally close triangles go to
+    /// the smaller index, which the restriction keeps (the mesh itself is not renumbered). The
+    /// result is the leaves only: no signed flood fill, so tiles keep the background (the caller
+    /// merges the parts and finishes the union once: finishBrickUnion()). Pseudonormal and
+    /// Unsigned only, not with fillInterior (InvalidArgumentError): the winding number's tile
+    /// signs and the interior fill are passes over the whole tree.
+    const std::vector<openvdb::CoordBBox>* onlyLeavesIn = nullptr;
 };
 
 /// @brief Counters of meshToLevelSet(): the hierarchy, the candidate leaves and the search.
