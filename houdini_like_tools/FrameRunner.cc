@@ -133,11 +133,20 @@ void checkFrameOutputs(const OperatorArgs& args)
     }
 }
 
+/// JSON text of @p j; bytes of strings that are not UTF-8 (a Latin-1 file name, a message quoting
+/// a corrupt file) become U+FFFD instead of failing the report.
+std::string jsonText(const nlohmann::json& j, int indent)
+{
+    return j.dump(indent, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
 int writeReport(const CommonOptions& common, const nlohmann::json& report, std::ostream& err)
 {
     if (common.reportJson.empty()) return kExitOk;
+    // After Ctrl-C nothing more is written (Interrupt.h), and the one error line is "interrupted".
+    if (interruptRequested()) return kExitOk;
     try {
-        writeTextAtomic(common.reportJson, report.dump(2) + "\n");
+        writeTextAtomic(common.reportJson, jsonText(report, 2) + "\n");
     } catch (const std::exception& e) {
         err << "levelforge: error: " << oneLine(e.what()) << std::endl;
         return kExitFailure;
@@ -198,9 +207,17 @@ TaskShare taskShare(const CommonOptions& common)
         const auto min = envInteger("SLURM_ARRAY_TASK_MIN");
         const auto max = envInteger("SLURM_ARRAY_TASK_MAX");
         const auto n = envInteger("SLURM_ARRAY_TASK_COUNT");
-        index = *id - min.value_or(0);
+        // --array=A-B:S numbers the tasks A, A+S, A+2S, ...
+        const long long step = envInteger("SLURM_ARRAY_TASK_STEP").value_or(1);
+        if (step < 1) throw UsageError("the environment variable SLURM_ARRAY_TASK_STEP=" + std::to_string(step) + " is not a step");
+        const long long offset = *id - min.value_or(0);
+        if (offset % step != 0)
+            throw UsageError("SLURM_ARRAY_TASK_ID=" + std::to_string(*id) + " is not SLURM_ARRAY_TASK_MIN=" +
+                             std::to_string(min.value_or(0)) + " plus a multiple of SLURM_ARRAY_TASK_STEP=" + std::to_string(step) +
+                             "; give --task-index and --task-count for arrays of listed ids");
+        index = offset / step;
         if (n) count = *n;
-        else if (min && max) count = *max - *min + 1;
+        else if (min && max) count = (*max - *min) / step + 1;
         else throw UsageError("SLURM_ARRAY_TASK_ID is set but neither SLURM_ARRAY_TASK_COUNT nor SLURM_ARRAY_TASK_MIN/MAX");
         t.source = "SLURM_ARRAY_TASK_ID=" + std::to_string(*id);
     } else if (const auto li = envInteger("LEVELFORGE_TASK_INDEX")) {
@@ -231,7 +248,7 @@ std::vector<int> taskFrames(const std::vector<int>& frames, int index, int count
 
 std::string cookReportJson(const OperatorArgs& args, double seconds, const std::string& error)
 {
-    return reportObject(args, seconds, error).dump();
+    return jsonText(reportObject(args, seconds, error), -1);
 }
 
 void writeTextAtomic(const std::string& path, const std::string& text)

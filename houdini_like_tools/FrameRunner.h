@@ -43,8 +43,8 @@ struct TaskShare
 };
 
 /// @brief Which task this is: --task-index/--task-count when given, else Slurm's array
-///        variables (SLURM_ARRAY_TASK_ID minus SLURM_ARRAY_TASK_MIN, and SLURM_ARRAY_TASK_COUNT or
-///        MAX - MIN + 1), else the generic LEVELFORGE_TASK_INDEX / LEVELFORGE_TASK_COUNT, else one
+///        variables (SLURM_ARRAY_TASK_ID minus SLURM_ARRAY_TASK_MIN, divided by
+///        SLURM_ARRAY_TASK_STEP when set, and SLURM_ARRAY_TASK_COUNT or (MAX - MIN) / STEP + 1), else the generic LEVELFORGE_TASK_INDEX / LEVELFORGE_TASK_COUNT, else one
 ///        task of one.
 /// @throws UsageError an index without a count (or the reverse), a count below 1, an index
 ///         outside [0, count), or a variable that is not an integer (naming it)

@@ -13,6 +13,8 @@
 #include <atomic>
 #include <cerrno>
 #include <csignal>
+#include <cstring>
+#include <filesystem>
 
 #include <unistd.h>
 
@@ -23,6 +25,32 @@ volatile std::sig_atomic_t gInterrupted = 0;
 std::atomic<int> gReading{0}; // ReadingScopes alive (frames read in parallel)
 std::atomic<int> gSignalCount{0};
 static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs lock-free counters");
+
+// The paths of ExitCleanupPath: Free -> Filling -> Live -> Free, and Live -> Taken by the
+// handler for good (as detail's table of live temporary files).
+enum CleanupState : int { kFree = 0, kFilling = 1, kLive = 2, kTaken = 3 };
+
+struct CleanupSlot
+{
+    std::atomic<int> state{kFree};
+    char path[ExitCleanupPath::kExitCleanupPathMax];
+};
+
+CleanupSlot gCleanup[ExitCleanupPath::kExitCleanupSlots]; // zero-initialised: every slot Free
+
+/// Async-signal-safe: removes every registered file, then every registered directory.
+void removeCleanupPaths() noexcept
+{
+    bool taken[ExitCleanupPath::kExitCleanupSlots] = {};
+    for (int i = 0; i < ExitCleanupPath::kExitCleanupSlots; ++i) {
+        int expected = kLive;
+        taken[i] = gCleanup[i].state.compare_exchange_strong(expected, kTaken);
+        if (taken[i]) ::unlink(gCleanup[i].path); // fails (EISDIR) for a directory
+    }
+    for (int i = 0; i < ExitCleanupPath::kExitCleanupSlots; ++i) {
+        if (taken[i]) ::rmdir(gCleanup[i].path); // fails (ENOTDIR, ENOENT) for a file
+    }
+}
 
 /// write() all of a literal to stderr, ignoring errors (async-signal-safe).
 template<size_t N>
@@ -49,10 +77,12 @@ extern "C" void onInterruptSignal(int)
     detail::abortWrites();
     const int live = detail::removeLiveTemporaryFiles();
     if (live > 0) {
+        removeCleanupPaths();
         writeStderr("levelforge: error: interrupted while writing; the partial output was removed\n");
         ::_exit(kExitInterrupted);
     }
     if (count >= 2 || gReading.load() > 0) {
+        removeCleanupPaths();
         writeStderr("levelforge: error: interrupted\n");
         ::_exit(kExitInterrupted);
     }
@@ -92,5 +122,33 @@ ReadingScope::ReadingScope()
 }
 
 ReadingScope::~ReadingScope() { gReading.fetch_sub(1); }
+
+ExitCleanupPath::ExitCleanupPath(const std::string& path)
+{
+    std::string abs = path;
+    try {
+        std::error_code ec;
+        const std::filesystem::path a = std::filesystem::absolute(path, ec);
+        if (!ec) abs = a.string();
+    } catch (...) {
+    }
+    if (abs.empty() || abs.size() >= size_t(kExitCleanupPathMax)) return;
+    for (int i = 0; i < kExitCleanupSlots; ++i) {
+        int expected = kFree;
+        if (gCleanup[i].state.compare_exchange_strong(expected, kFilling)) {
+            std::memcpy(gCleanup[i].path, abs.c_str(), abs.size() + 1);
+            gCleanup[i].state.store(kLive);
+            mSlot = i;
+            return;
+        }
+    }
+}
+
+ExitCleanupPath::~ExitCleanupPath()
+{
+    if (mSlot < 0) return;
+    int expected = kLive;
+    gCleanup[mSlot].state.compare_exchange_strong(expected, kFree); // stays Taken if the handler took it
+}
 
 } // namespace levelforge::ops

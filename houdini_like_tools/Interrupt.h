@@ -18,6 +18,9 @@
 //    interrupted" and ends the process with _exit(130) at once: reading has no side effects.
 // A second signal ends the process at once the same way (temporary files removed, one error
 // line, status 130), whatever it is doing.
+// Whenever the handler ends the process, it also removes the paths registered with an
+// ExitCleanupPath (the staging directories of `levelforge run` and the files staged in them):
+// first every registered file, then every registered (by then empty) directory.
 //
 // Async-signal safety: the handler uses only a lock-free std::atomic counter, a volatile
 // sig_atomic_t flag, the lock-free atomics of detail's fixed-size table of live temporary
@@ -52,6 +55,28 @@ public:
     ~ReadingScope();
     ReadingScope(const ReadingScope&) = delete;
     ReadingScope& operator=(const ReadingScope&) = delete;
+};
+
+/// @brief While alive, a signal handler that ends the process (see the file comment) removes
+///        @p path: unlink() for a file, rmdir() for a directory (files are removed first, so a
+///        directory whose files are all registered goes too). Async-signal-safe on the handler's
+///        side (a fixed table of kExitCleanupSlots paths, lock-free atomics); a path that finds
+///        no free slot, or is longer than kExitCleanupPathMax - 1 bytes, is not covered.
+///        Relative paths are made absolute. Thread-safe.
+class ExitCleanupPath
+{
+public:
+    static constexpr int kExitCleanupSlots = 128;
+    static constexpr int kExitCleanupPathMax = 4096;
+    explicit ExitCleanupPath(const std::string& path);
+    ~ExitCleanupPath();
+    ExitCleanupPath(const ExitCleanupPath&) = delete;
+    ExitCleanupPath& operator=(const ExitCleanupPath&) = delete;
+    /// False when the table was full or the path too long.
+    bool covered() const { return mSlot >= 0; }
+
+private:
+    int mSlot = -1;
 };
 
 /// @brief The operators' progress reporter; also reports a pending Ctrl-C as an interruption.

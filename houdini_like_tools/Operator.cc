@@ -643,9 +643,24 @@ void OperatorArgs::cook()
     mSpec->cookFunction()(*this);
 }
 
+namespace {
+RegistrarCapture* gCapture = nullptr; // the RegistrarCapture alive, if any
+} // namespace
+
 OperatorRegistrar::OperatorRegistrar(OperatorSpec spec)
 {
+    if (RegistrarCapture* capture = gCapture) {
+        try {
+            capture->mTarget.add(std::move(spec));
+        } catch (const std::exception& e) {
+            if (capture->mError.empty()) capture->mError = e.what();
+        }
+        return;
+    }
     OperatorRegistry::global().add(std::move(spec));
 }
+
+RegistrarCapture::RegistrarCapture(OperatorRegistry& target) : mTarget(target), mSaved(gCapture) { gCapture = this; }
+RegistrarCapture::~RegistrarCapture() { gCapture = mSaved; }
 
 } // namespace levelforge::ops

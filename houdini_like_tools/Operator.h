@@ -285,10 +285,35 @@ private:
     std::vector<std::string> mStepReports;
 };
 
-/// Adds `spec` to OperatorRegistry::global() during static initialisation.
+/// Adds `spec` to OperatorRegistry::global() during static initialisation (or, while a
+/// RegistrarCapture is alive, to its registry).
 struct OperatorRegistrar
 {
     explicit OperatorRegistrar(OperatorSpec spec);
+};
+
+class OperatorRegistry; // OperatorRegistry.h
+
+/// @brief While alive, OperatorRegistrar adds to @p target instead of the global registry and
+///        never throws: the first declaration error is kept (error()). The plugin loader holds one
+///        around dlopen(), so that a plugin's static LEVELFORGE_REGISTER_OPERATOR declarations go
+///        through the same version check and name check as its entry point's (Plugins.h).
+///        One at a time, on the main thread.
+class RegistrarCapture
+{
+public:
+    explicit RegistrarCapture(OperatorRegistry& target);
+    ~RegistrarCapture();
+    RegistrarCapture(const RegistrarCapture&) = delete;
+    RegistrarCapture& operator=(const RegistrarCapture&) = delete;
+    /// The first error of a captured registration ("" if none).
+    const std::string& error() const { return mError; }
+
+private:
+    friend struct OperatorRegistrar;
+    OperatorRegistry& mTarget;
+    std::string mError;
+    RegistrarCapture* mSaved;
 };
 
 #define LEVELFORGE_OPS_CONCAT_INNER(a, b) a##b

@@ -20,6 +20,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <memory>
 #include <random>
 #include <set>
 #include <sstream>
@@ -98,6 +99,8 @@ public:
     {
         std::error_code ec;
         for (const auto& [dir, staging] : mDirs) fs::remove_all(staging, ec);
+        // mCleanup is released after this: a signal that ends the process in between finds
+        // only paths that are gone already
     }
 
     /// The staged path for the target @p path (created directory on first use).
@@ -119,11 +122,14 @@ public:
                 if (fs::create_directory(candidate, ec) && !ec) staging = candidate.string();
             }
             if (staging.empty()) throw IoError("cannot write '" + path + "': cannot create a staging directory in '" + dir.string() + "'");
+            // a signal handler that ends the process (Interrupt.h) removes it
+            mCleanup.push_back(std::make_unique<ExitCleanupPath>(staging));
         }
         const std::string staged = (fs::path(staging) / resolved.filename()).string();
         for (const auto& [t, s] : mStaged) {
             if (s == staged) throw UsageError("two outputs of the pipeline are the same file '" + path + "'");
         }
+        mCleanup.push_back(std::make_unique<ExitCleanupPath>(staged));
         mStaged[path] = staged;
         mTargets.emplace_back(staged, target.resolved);
         return staged;
@@ -154,7 +160,15 @@ private:
     std::map<std::string, std::string> mDirs;   ///< target directory -> staging directory
     std::map<std::string, std::string> mStaged; ///< output path as given -> staged path
     std::vector<std::pair<std::string, std::string>> mTargets;
+    std::vector<std::unique_ptr<ExitCleanupPath>> mCleanup; ///< staging directories and staged files
 };
+
+/// @p text with every staged path shown as the file it becomes.
+std::string unstaged(std::string text, const FrameStaging& staging)
+{
+    for (const auto& [target, staged] : staging.staged()) text = replaceAll(text, staged, target);
+    return text;
+}
 
 } // namespace
 
@@ -281,6 +295,12 @@ void runPipeline(const Pipeline& pipeline, OperatorArgs& run, bool quiet)
             if (!fs::exists(in, ec) && a.spec().name() != "sample") // sample's inputs are coordinates
                 throw IoError(step.label + ": input '" + in + "' does not exist");
         }
+        // a text parameter naming a file an earlier step of this frame writes (resample
+        // --reference, slice --error-against) reads the staged file too
+        for (const Param& prm : a.spec().params()) {
+            if (prm.type != ParamType::String || prm.repeatable || !a.isSet(prm.name)) continue;
+            if (const std::string* s = staging.staged(a.getString(prm.name))) a.set(prm.name, *s);
+        }
         for (const Port& port : a.spec().outputs()) {
             const std::string& out = a.output(port.name);
             if (isMemoryName(out) || detail::isNullDevice(out)) continue;
@@ -307,16 +327,15 @@ void runPipeline(const Pipeline& pipeline, OperatorArgs& run, bool quiet)
             a.cook();
         } catch (const std::exception& e) {
             error = e.what();
+            if (error.empty()) error = "unknown failure";
             failure = std::current_exception();
         }
         const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-        // what the step printed, with the staged paths shown as the files they become
-        std::string printed = out.str();
-        for (const auto& [target, staged] : staging.staged()) printed = replaceAll(printed, staged, target);
-        run.out() << printed;
-        std::string report = cookReportJson(a, seconds, error);
-        for (const auto& [target, staged] : staging.staged()) report = replaceAll(report, staged, target);
-        run.addStepReport(report);
+        // what the step printed, its error and its report, with the staged paths shown as the
+        // files they become
+        run.out() << unstaged(out.str(), staging);
+        error = unstaged(error, staging);
+        run.addStepReport(unstaged(cookReportJson(a, seconds, error), staging));
         if (!error.empty()) {
             const std::string msg = label + ": " + error;
             try {

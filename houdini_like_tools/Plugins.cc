@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <memory>
 #include <ostream>
 #include <sstream>
 
@@ -55,22 +56,38 @@ void loadPlugin(const std::string& path, OperatorRegistry& registry)
     if (!fs::is_regular_file(path, ec)) throw InvalidArgumentError(what + "no such file");
     // dlopen searches the library path for a name without '/': always give it a path
     const std::string file = path.find('/') == std::string::npos ? "./" + path : path;
-    void* handle = ::dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
+    // What the plugin declares in its static initialisers (LEVELFORGE_REGISTER_OPERATOR, run by
+    // dlopen) goes into this scratch registry too, not straight into the program's: it passes the
+    // same checks as what its entry point registers, and a refused plugin adds nothing.
+    auto scratch = std::make_unique<OperatorRegistry>();
+    void* handle = nullptr;
+    std::string staticError;
+    {
+        const RegistrarCapture capture(*scratch);
+        handle = ::dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
+        staticError = capture.error();
+    }
     if (!handle) {
         const char* e = ::dlerror();
         throw InvalidArgumentError(what + (e ? e : "not a shared library"));
     }
-    // Plugins stay loaded for the life of the process: their cook functions are registered.
+    // Refusing unloads the library, after the scratch registry (whose cook functions live in
+    // it) is gone. A plugin that is kept stays loaded for the life of the process.
+    const auto refuse = [&](const std::string& why) {
+        scratch.reset();
+        ::dlclose(handle);
+        throw InvalidArgumentError(what + why);
+    };
     using InfoFn = const LevelforgePluginInfo* (*)();
     using RegisterFn = void (*)(OperatorRegistry&);
     auto info = reinterpret_cast<InfoFn>(::dlsym(handle, "levelforge_plugin_info"));
     auto reg = reinterpret_cast<RegisterFn>(::dlsym(handle, "levelforge_plugin_register"));
     if (!info || !reg) {
-        ::dlclose(handle);
-        throw InvalidArgumentError(what + "it is not a levelforge operator plugin (no levelforge_plugin_info / "
-                                          "levelforge_plugin_register; see OperatorPlugin.h)");
+        refuse("it is not a levelforge operator plugin (no levelforge_plugin_info / "
+               "levelforge_plugin_register; see OperatorPlugin.h)");
     }
     const LevelforgePluginInfo* pi = info();
+    if (!pi) refuse("its levelforge_plugin_info() returned no information");
     const LevelforgePluginInfo host = hostPluginInfo();
     std::string mismatch;
     if (pi->abiVersion != host.abiVersion) {
@@ -81,23 +98,23 @@ void loadPlugin(const std::string& path, OperatorRegistry& registry)
                pi->sizeofParam != host.sizeofParam) {
         mismatch = "another layout of the operator types (another levelforge version or compiler)";
     }
-    if (!mismatch.empty()) {
-        ::dlclose(handle);
-        throw InvalidArgumentError(what + "it was built for " + mismatch + "; rebuild it against this levelforge");
-    }
-    // Register into a scratch registry first: a plugin whose declarations fail adds nothing.
-    OperatorRegistry scratch;
+    if (!mismatch.empty()) refuse("it was built for " + mismatch + "; rebuild it against this levelforge");
+    if (!staticError.empty()) refuse(staticError);
+    // Register into the scratch registry first: a plugin whose declarations fail adds nothing.
+    std::string error;
     try {
-        reg(scratch);
-        for (const OperatorSpec* spec : scratch.list()) {
+        reg(*scratch);
+        for (const OperatorSpec* spec : scratch->list()) {
             if (registry.find(spec->name()))
                 throw std::logic_error("operator '" + spec->name() + "' is already registered");
         }
     } catch (const std::exception& e) {
-        throw InvalidArgumentError(what + e.what());
+        error = e.what();
     }
-    if (scratch.list().empty()) throw InvalidArgumentError(what + "it registers no operator");
-    for (const OperatorSpec* spec : scratch.list()) registry.add(*spec);
+    // (not unloaded here: the plugin's code may still be on the stack of what threw)
+    if (!error.empty()) throw InvalidArgumentError(what + error);
+    if (scratch->list().empty()) throw InvalidArgumentError(what + "it registers no operator");
+    for (const OperatorSpec* spec : scratch->list()) registry.add(*spec);
 }
 
 int loadPlugins(const std::vector<std::string>& args, std::ostream& err)

@@ -25,16 +25,35 @@ void checkFrameTokens(const Pipeline& p)
     }
 }
 
+/// Without frames, a file output with a frame token would be written under the token's text.
+void checkNoFrameTokens(const Pipeline& p)
+{
+    for (const PipelineStep& step : p.steps) {
+        for (const Port& port : step.args.spec().outputs()) {
+            const std::string& out = step.args.output(port.name);
+            if (isMemoryName(out) || !hasFrameToken(out)) continue;
+            throw UsageError(step.label + ": the output '" + out +
+                             "' has a frame token; give --frames A-B[:step] (see 'levelforge run --help')");
+        }
+    }
+}
+
+void checkTokens(const Pipeline& p, const OperatorArgs& args)
+{
+    if (args.frame()) checkFrameTokens(p);
+    else checkNoFrameTokens(p);
+}
+
 void precheckRun(OperatorArgs& args)
 {
     const Pipeline p = loadPipeline(args.input("pipeline"), OperatorRegistry::global());
-    if (args.frame()) checkFrameTokens(p);
+    checkTokens(p, args);
 }
 
 void cookRun(OperatorArgs& args)
 {
     const Pipeline p = loadPipeline(args.input("pipeline"), OperatorRegistry::global());
-    if (args.frame()) checkFrameTokens(p);
+    checkTokens(p, args);
     runPipeline(p, args, args.getBool("quiet"));
     args.stat("steps", int(p.steps.size()));
 }

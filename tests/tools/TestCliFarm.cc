@@ -56,7 +56,7 @@ struct CleanEnvironment
     static void clear()
     {
         for (const char* v : {"SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_MIN", "SLURM_ARRAY_TASK_MAX",
-                              "SLURM_ARRAY_TASK_COUNT", "LEVELFORGE_TASK_INDEX", "LEVELFORGE_TASK_COUNT"})
+                              "SLURM_ARRAY_TASK_COUNT", "SLURM_ARRAY_TASK_STEP", "LEVELFORGE_TASK_INDEX", "LEVELFORGE_TASK_COUNT"})
             ::unsetenv(v);
     }
 };
@@ -93,6 +93,31 @@ TEST(FarmTasks, TaskFromOptionsSlurmAndGenericEnvironment)
     EXPECT_EQ(taskShare(c).index, 1);
     c.taskIndex = 1; // an index without a count
     EXPECT_THROW(taskShare(c), UsageError);
+}
+
+TEST(FarmTasks, SlurmArraysWithAStep)
+{
+    // sbatch --array=10-40:10: task ids 10, 20, 30, 40 are tasks 0..3 of 4
+    const CleanEnvironment clean;
+    const CommonOptions c;
+    ::setenv("SLURM_ARRAY_TASK_MIN", "10", 1);
+    ::setenv("SLURM_ARRAY_TASK_MAX", "40", 1);
+    ::setenv("SLURM_ARRAY_TASK_STEP", "10", 1);
+    for (int id = 10, expected = 0; id <= 40; id += 10, ++expected) {
+        ::setenv("SLURM_ARRAY_TASK_ID", std::to_string(id).c_str(), 1);
+        const auto t = taskShare(c);
+        EXPECT_EQ(t.index, expected) << id;
+        EXPECT_EQ(t.count, 4) << id;
+    }
+    ::setenv("SLURM_ARRAY_TASK_COUNT", "4", 1);
+    ::setenv("SLURM_ARRAY_TASK_ID", "40", 1);
+    EXPECT_EQ(taskShare(c).index, 3);
+    ::setenv("SLURM_ARRAY_TASK_ID", "25", 1); // not on the step
+    EXPECT_THROW(taskShare(c), UsageError);
+    ::setenv("SLURM_ARRAY_TASK_STEP", "1", 1); // a plain range
+    ::setenv("SLURM_ARRAY_TASK_ID", "12", 1);
+    ::setenv("SLURM_ARRAY_TASK_COUNT", "31", 1);
+    EXPECT_EQ(taskShare(c).index, 2);
 }
 
 #ifdef LEVELFORGE_CLI_PATH

@@ -7,6 +7,7 @@
 #include "FrameRange.h"
 #include "Interrupt.h"
 #include "Operator.h"
+#include "OperatorRegistry.h"
 
 #include <levelforge/io/MeshIO.h>
 #include <levelforge/io/VdbIO.h>
@@ -25,6 +26,11 @@
 #include <string>
 #include <thread>
 #include <vector>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 using levelforge_test::scratchDir;
@@ -107,6 +113,31 @@ TEST(CliProgressBar, BarWithPercentEtaAndDone)
         progress.end();
     }
     EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+}
+
+// A plugin's static LEVELFORGE_REGISTER_OPERATOR declarations run inside dlopen(), before the
+// loader's version check: while the loader holds a RegistrarCapture they go into its scratch
+// registry (never the program's), and an error there is kept instead of thrown out of dlopen.
+TEST(CliPlugins, StaticDeclarationsDuringLoadingAreCaptured)
+{
+    using namespace levelforge::ops;
+    const auto noop = [](OperatorArgs&) {};
+    OperatorRegistry scratch;
+    std::string error;
+    {
+        const RegistrarCapture capture(scratch);
+        const OperatorRegistrar a(OperatorSpec("captured-op", "captured").cook(noop));
+        const OperatorRegistrar dup(OperatorSpec("captured-op", "again").cook(noop)); // no throw
+        const OperatorRegistrar taken(OperatorSpec("mesh-to-sdf", "a built-in name, in the scratch registry").cook(noop));
+        error = capture.error();
+    }
+    EXPECT_NE(scratch.find("captured-op"), nullptr);
+    EXPECT_NE(scratch.find("mesh-to-sdf"), nullptr);
+    EXPECT_EQ(OperatorRegistry::global().find("captured-op"), nullptr);
+    EXPECT_NE(error.find("operator 'captured-op' is registered twice"), std::string::npos) << error;
+    // outside a capture, registrations go to the program's registry as before
+    const OperatorRegistrar global(OperatorSpec("captured-op-global", "global").cook(noop));
+    EXPECT_NE(OperatorRegistry::global().find("captured-op-global"), nullptr);
 }
 
 #ifdef LEVELFORGE_CLI_PATH
@@ -331,6 +362,128 @@ TEST(CliFrames, TokensAndFramesMustGoTogether)
     EXPECT_NE(r.err.find("only valid in the files of 'levelforge run'"), std::string::npos) << r.err;
     EXPECT_EQ(fs::directory_iterator(dir) == fs::directory_iterator(), false); // the .stdout/.stderr files
     for (const auto& e : fs::directory_iterator(dir)) EXPECT_NE(e.path().extension(), ".vdb") << e.path();
+}
+
+TEST(CliPipeline, FrameTokensWithoutFramesAreAUsageError)
+{
+    // as for every other operator: without --frames the file would be named "out_$F4.vdb"
+    const fs::path dir = scratchDir("pipeline_tokens");
+    writeText(dir / "p.json", R"({"steps": [{"op": "mesh-to-sdf", "inputs": ["builtin:sphere"], "outputs": ["@a"],
+        "params": {"voxel-count": 16, "quiet": true}},
+        {"op": "reshape", "inputs": ["@a"], "outputs": [")" + (dir / "out_$F4.vdb").string() + R"("], "params": {"quiet": true}}]})");
+    const CliRun r = run(dir / "r", {"run", (dir / "p.json").string()});
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_EQ(countLines(r.err, "levelforge: "), 1) << r.err;
+    EXPECT_NE(r.err.find("step 2 (reshape): the output '"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("has a frame token; give --frames"), std::string::npos) << r.err;
+    for (const auto& e : fs::directory_iterator(dir)) EXPECT_NE(e.path().extension(), ".vdb") << e.path();
+}
+
+TEST(CliPipeline, ParametersNamingAnEarlierStepsFileReadTheStagedFile)
+{
+    // resample --reference names a file that step 1 of the same frame writes: step 3 must read
+    // the staged file (the target does not exist until the frame is committed)
+    const fs::path dir = scratchDir("pipeline_param_files");
+    const std::string ref = (dir / "ref.vdb").string(), out = (dir / "out.vdb").string();
+    writeText(dir / "p.json", R"({"steps": [
+        {"op": "mesh-to-sdf", "inputs": ["builtin:sphere"], "outputs": [")" + ref + R"("], "params": {"voxel-count": 20, "quiet": true}},
+        {"op": "mesh-to-sdf", "inputs": ["builtin:sphere"], "outputs": ["@a"], "params": {"voxel-count": 32, "quiet": true}},
+        {"op": "resample", "inputs": ["@a"], "outputs": [")" + out + R"("], "params": {"reference": ")" + ref + R"(", "quiet": true}}]})");
+    const CliRun r = run(dir / "r", {"run", (dir / "p.json").string(), "--report-json", (dir / "rep.json").string()});
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto a = firstFloat(ref), b = firstFloat(out);
+    ASSERT_TRUE(a && b);
+    EXPECT_EQ(a->transform(), b->transform());
+    // the report names the target, not the staged file
+    const std::string report = readText(dir / "rep.json");
+    EXPECT_EQ(report.find(".levelforge-run"), std::string::npos) << report;
+    EXPECT_NE(report.find("\"reference\": \"" + ref + "\""), std::string::npos) << report;
+}
+
+TEST(CliFrames, ReportsTakeFileNamesThatAreNotUtf8)
+{
+    // a Latin-1 file name is a valid path; the report must not fail on it
+    const fs::path dir = scratchDir("report_latin1");
+    const std::string out = (dir / "caf\xe9.vdb").string();
+    const CliRun r = run(dir / "r", {"mesh-to-sdf", "builtin:sphere", out, "--voxel-count", "16", "--quiet", "--report-json",
+                                     (dir / "rep.json").string()});
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_TRUE(fs::exists(out));
+    const nlohmann::json rep = nlohmann::json::parse(readText(dir / "rep.json"));
+    EXPECT_EQ(rep.at("status"), "ok");
+}
+
+/// Starts `levelforge <args>` (stderr to @p errFile, stdout discarded); returns its pid.
+pid_t startLevelforge(const std::vector<std::string>& args, const fs::path& errFile)
+{
+    std::vector<std::string> all{LEVELFORGE_CLI_PATH};
+    all.insert(all.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (std::string& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const std::string err = errFile.string();
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+        const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        const int o = ::open("/dev/null", O_WRONLY);
+        if (e < 0 || o < 0) ::_exit(126);
+        // a test runner started in the background ignores SIGINT, and so would its children
+        ::signal(SIGINT, SIG_DFL);
+        ::signal(SIGTERM, SIG_DFL);
+        ::dup2(e, STDERR_FILENO);
+        ::dup2(o, STDOUT_FILENO);
+        ::execv(argv[0], argv.data());
+        ::_exit(127);
+    }
+    return pid;
+}
+
+/// The staged file @p name in a staging directory of @p dir, if there is one.
+bool stagedFileExists(const fs::path& dir, const std::string& name)
+{
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
+        if (e.path().filename().string().rfind(".levelforge-run", 0) == 0 && fs::exists(e.path() / name, ec)) return true;
+    }
+    return false;
+}
+
+TEST(CliPipeline, CtrlCLeavesNoStagingDirectoryNoReportAndOneErrorLine)
+{
+    // step 1 is committed to the staging directory, step 2 computes for a while; then Ctrl-C
+    // once (the step stops at its next progress check) or twice (the handler ends the process
+    // at once): either way nothing of the frame remains, no report is written after Ctrl-C,
+    // and there is one error line, status 130
+    for (const int signals : {1, 2}) {
+        const fs::path dir = scratchDir("pipeline_ctrl_c_" + std::to_string(signals));
+        const std::string first = (dir / "first.vdb").string(), second = (dir / "second.vdb").string();
+        writeText(dir / "p.json", R"({"steps": [
+            {"op": "mesh-to-sdf", "inputs": ["builtin:sphere"], "outputs": [")" + first + R"("], "params": {"voxel-count": 16, "quiet": true}},
+            {"op": "mesh-to-sdf", "inputs": ["builtin:torus-knot"], "outputs": [")" + second + R"("],
+             "params": {"voxel-count": 400, "exterior-band": 20, "interior-band": 20, "quiet": true}}]})");
+        const fs::path errFile = dir / "err.txt";
+        const pid_t pid = startLevelforge({"run", (dir / "p.json").string(), "--report-json", (dir / "rep.json").string()}, errFile);
+        ASSERT_GT(pid, 0);
+        const auto t0 = std::chrono::steady_clock::now();
+        while (!stagedFileExists(dir, "first.vdb") && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
+            std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        const bool staged = stagedFileExists(dir, "first.vdb");
+        std::this_thread::sleep_for(std::chrono::milliseconds(300)); // step 2 is computing
+        for (int i = 0; i < signals; ++i) ::kill(pid, SIGINT);
+        int status = 0;
+        ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+        ASSERT_TRUE(staged) << "step 1 never finished";
+        const std::string err = readText(errFile);
+        ASSERT_TRUE(WIFEXITED(status)) << err;
+        EXPECT_EQ(WEXITSTATUS(status), 130) << err;
+        EXPECT_EQ(countLines(err, "levelforge: error:"), 1) << err;
+        EXPECT_NE(err.find("interrupted"), std::string::npos) << err;
+        EXPECT_FALSE(fs::exists(first));
+        EXPECT_FALSE(fs::exists(second));
+        EXPECT_FALSE(fs::exists(dir / "rep.json"));
+        for (const auto& e : fs::directory_iterator(dir))
+            EXPECT_EQ(e.path().filename().string().find(".levelforge-run"), std::string::npos) << signals << " signal(s): " << e.path();
+    }
 }
 
 #ifdef LEVELFORGE_SHELL_PLUGIN
