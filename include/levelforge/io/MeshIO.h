@@ -51,7 +51,8 @@
 /// OpenMesh reads as empty) are reported as errors rather than read as nothing.
 ///
 /// writeMesh() writes OBJ, OFF (ASCII, shortest round-trip decimal form of each double), PLY
-/// (binary little endian, double coordinates) or STL (binary, single precision), chosen by the
+/// (binary little endian; float coordinates when every coordinate is exactly a float, which
+/// loses nothing, else double) or STL (binary, single precision), chosen by the
 /// extension. It writes what it is given (validate first if you need guarantees; only STL, which
 /// stores coordinates per facet, checks indices). The file appears atomically: the data goes to a
 /// temporary file in the same folder, which is flushed to disk and renamed over the target when
