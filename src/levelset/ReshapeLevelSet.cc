@@ -5,6 +5,8 @@
 
 #include <levelforge/core/Exceptions.h>
 
+#include "levelset/LevelSetFilterInternal.h"
+
 #include <openvdb/tools/LevelSetFilter.h>
 
 #include <cmath>
@@ -21,39 +23,9 @@ ReshapeOperation reshapeOperationFromString(const std::string& name)
     throw InvalidArgumentError("unknown reshape operation '" + name + "' (dilate, erode, open, close)");
 }
 
-namespace {
-
-/// Forwards the filter's polls to the caller's interrupter, remembering a stop.
-struct Poller : openvdb::util::NullInterrupter
-{
-    openvdb::util::NullInterrupter* user = nullptr;
-    int base = 0, span = 100; // this pass's share of 0–100
-    bool stopped = false;
-    bool wasInterrupted(int percent = -1) override
-    {
-        if (!user || stopped) return stopped;
-        const int p = percent < 0 ? -1 : base + span * percent / 100;
-        stopped = user->wasInterrupted(p);
-        return stopped;
-    }
-};
-
-} // namespace
-
 openvdb::FloatGrid::Ptr reshapeLevelSet(const openvdb::FloatGrid& levelSet, const ReshapeOptions& options)
 {
-    if (levelSet.getGridClass() != openvdb::GRID_LEVEL_SET)
-        throw InvalidArgumentError("reshape: grid '" + levelSet.getName() + "' is not a level set (class GRID_LEVEL_SET)");
-    if (!levelSet.hasUniformVoxels())
-        throw InvalidArgumentError("reshape: grid '" + levelSet.getName() + "' has non-uniform voxels");
-    const double h = levelSet.voxelSize()[0];
-    const double band = std::abs(double(levelSet.background())) / h;
-    if (!(band >= 2.0)) {
-        std::ostringstream os;
-        os << "reshape: grid '" << levelSet.getName() << "' has a band of " << band
-           << " voxels; the level-set tracker needs at least 2 on each side";
-        throw InvalidArgumentError(os.str());
-    }
+    const double h = levelset_internal::requireFilterableLevelSet(levelSet, "reshape");
     const double r = options.worldUnits ? options.offset / h : options.offset; // voxels
     if (!std::isfinite(r) || !(r > 0.0) || r > 10000.0) {
         std::ostringstream os;
@@ -62,7 +34,7 @@ openvdb::FloatGrid::Ptr reshapeLevelSet(const openvdb::FloatGrid& levelSet, cons
         throw InvalidArgumentError(os.str());
     }
     openvdb::FloatGrid::Ptr out = levelSet.deepCopy();
-    Poller poller;
+    levelset_internal::FilterPoller poller;
     poller.user = options.interrupter;
     using Filter = openvdb::tools::LevelSetFilter<openvdb::FloatGrid, openvdb::FloatGrid, openvdb::util::NullInterrupter>;
     Filter filter(*out, &poller);

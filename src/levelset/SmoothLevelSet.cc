@@ -5,6 +5,8 @@
 
 #include <levelforge/core/Exceptions.h>
 
+#include "levelset/LevelSetFilterInternal.h"
+
 #include <openvdb/tools/LevelSetFilter.h>
 
 #include <cmath>
@@ -35,39 +37,9 @@ const char* toString(SmoothFilter filter)
     return "?";
 }
 
-namespace {
-
-/// Forwards the filter's polls to the caller's interrupter, remembering a stop.
-struct Poller : openvdb::util::NullInterrupter
-{
-    openvdb::util::NullInterrupter* user = nullptr;
-    int base = 0, span = 100; // this iteration's share of 0–100
-    bool stopped = false;
-    bool wasInterrupted(int percent = -1) override
-    {
-        if (!user || stopped) return stopped;
-        const int p = percent < 0 ? -1 : base + span * percent / 100;
-        stopped = user->wasInterrupted(p);
-        return stopped;
-    }
-};
-
-} // namespace
-
 openvdb::FloatGrid::Ptr smoothLevelSet(const openvdb::FloatGrid& levelSet, const SmoothLevelSetOptions& options)
 {
-    if (levelSet.getGridClass() != openvdb::GRID_LEVEL_SET)
-        throw InvalidArgumentError("smooth: grid '" + levelSet.getName() + "' is not a level set (class GRID_LEVEL_SET)");
-    if (!levelSet.hasUniformVoxels())
-        throw InvalidArgumentError("smooth: grid '" + levelSet.getName() + "' has non-uniform voxels");
-    const double h = levelSet.voxelSize()[0];
-    const double band = std::abs(double(levelSet.background())) / h;
-    if (!(band >= 2.0)) {
-        std::ostringstream os;
-        os << "smooth: grid '" << levelSet.getName() << "' has a band of " << band
-           << " voxels; the level-set tracker needs at least 2 on each side";
-        throw InvalidArgumentError(os.str());
-    }
+    levelset_internal::requireFilterableLevelSet(levelSet, "smooth");
     if (options.iterations < 1 || options.iterations > 1000)
         throw InvalidArgumentError("smooth: iterations must be 1 to 1000, got " + std::to_string(options.iterations));
     if (options.radius < 1 || options.radius > 32)
@@ -75,7 +47,7 @@ openvdb::FloatGrid::Ptr smoothLevelSet(const openvdb::FloatGrid& levelSet, const
                                    std::to_string(options.radius));
 
     openvdb::FloatGrid::Ptr out = levelSet.deepCopy();
-    Poller poller;
+    levelset_internal::FilterPoller poller;
     poller.user = options.interrupter;
     using Filter = openvdb::tools::LevelSetFilter<openvdb::FloatGrid, openvdb::FloatGrid, openvdb::util::NullInterrupter>;
     Filter filter(*out, &poller);

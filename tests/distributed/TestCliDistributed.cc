@@ -29,7 +29,8 @@ CliRun runMpi(const fs::path& dir, int ranks, const std::string& command)
 {
     CliRun r;
 #ifdef LEVELFORGE_MPIEXEC
-    r.command = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 " +
+    r.command = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 "
+                "OMPI_MCA_btl_vader_single_copy_mechanism=none " +
                 shellQuote(LEVELFORGE_MPIEXEC) + " --allow-run-as-root --oversubscribe --bind-to none -n " +
                 std::to_string(ranks) + " " + command;
 #endif
