@@ -102,6 +102,16 @@ void writeGridsOutput(const OperatorArgs& args, const std::string& path, const o
     writeGridsAtomic(path, grids, fileMeta);
 }
 
+void writeGridsReplacing(const OperatorArgs& args, const std::string& path, const openvdb::GridPtrVec& grids,
+                         const openvdb::GridBase::Ptr& replaced, const openvdb::GridBase::Ptr& by)
+{
+    openvdb::GridPtrVec result;
+    for (const openvdb::GridBase::Ptr& g : grids) result.push_back(g == replaced ? by : g);
+    openvdb::MetaMap fileMeta;
+    fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
+    writeGridsOutput(args, path, result, fileMeta);
+}
+
 void checkOutputTarget(const OperatorArgs& args, const std::string& path)
 {
     if (isMemoryName(path)) {

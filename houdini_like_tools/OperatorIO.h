@@ -62,6 +62,15 @@ openvdb::GridPtrVecPtr readGridsInput(const OperatorArgs& args, const std::strin
 void writeGridsOutput(const OperatorArgs& args, const std::string& path, const openvdb::GridPtrVec& grids,
                       const openvdb::MetaMap& fileMeta);
 
+/// @brief Writes the grids of an input file with one of them replaced (the operators that change
+///        one grid of a file and pass the others through: reshape, smooth, expand, rebuild), with
+///        the file metadata every operator writes ("creator": generatorString()).
+/// @param[in] grids     the grids read from the input
+/// @param[in] replaced  the grid of @p grids that was worked on
+/// @param[in] by        its replacement
+void writeGridsReplacing(const OperatorArgs& args, const std::string& path, const openvdb::GridPtrVec& grids,
+                         const openvdb::GridBase::Ptr& replaced, const openvdb::GridBase::Ptr& by);
+
 /// @brief Fails fast, before any work, when the output @p path cannot be written (see
 ///        levelforge::checkOutputPath()); nothing to check for an in-memory slot.
 void checkOutputTarget(const OperatorArgs& args, const std::string& path);

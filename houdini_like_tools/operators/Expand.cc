@@ -63,11 +63,7 @@ void cookExpand(OperatorArgs& args)
     const double ext = box ? bg : opt.widthInVoxels(opt.exteriorWidth, h);
     const double in = (box || opt.fillInterior) ? bg : opt.widthInVoxels(opt.interiorWidth, h);
     stampLevelSetMetadata(*out, ext, in, input, vector ? kVectorMethod : kMethod);
-    openvdb::GridPtrVec result;
-    for (const auto& g : *grids) result.push_back(g == grid ? out : g);
-    openvdb::MetaMap fileMeta;
-    fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsOutput(args, output, result, fileMeta);
+    writeGridsReplacing(args, output, *grids, grid, out);
 
     args.stat("input_band_voxels", uint64_t(st.frozenVoxels));
     args.stat("active_voxels", uint64_t(out->activeVoxelCount()));

@@ -66,11 +66,7 @@ void cookRebuild(OperatorArgs& args)
     openvdb::FloatGrid::Ptr out = rebuildLevelSet(*grid, opt, &st);
     out->insertMeta(meta::kSource, openvdb::StringMetadata(input));
 
-    openvdb::GridPtrVec result;
-    for (const auto& g : *grids) result.push_back(g == grid ? out : g);
-    openvdb::MetaMap fileMeta;
-    fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsOutput(args, output, result, fileMeta);
+    writeGridsReplacing(args, output, *grids, grid, out);
 
     const bool above = opt.inside == RebuildInside::Above ||
                        (opt.inside == RebuildInside::Auto && grid->getGridClass() == openvdb::GRID_FOG_VOLUME);

@@ -42,11 +42,7 @@ void cookReshape(OperatorArgs& args)
     openvdb::FloatGrid::Ptr out = reshapeLevelSet(*grid, opt);
     const double seconds = secondsSince(t1);
 
-    openvdb::GridPtrVec result;
-    for (const auto& g : *grids) result.push_back(g == grid ? out : g);
-    openvdb::MetaMap fileMeta;
-    fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsOutput(args, output, result, fileMeta);
+    writeGridsReplacing(args, output, *grids, grid, out);
 
     const double h = out->voxelSize()[0];
     const double r = opt.worldUnits ? opt.offset / h : opt.offset;

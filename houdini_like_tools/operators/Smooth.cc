@@ -41,11 +41,7 @@ void cookSmooth(OperatorArgs& args)
     openvdb::FloatGrid::Ptr out = smoothLevelSet(*grid, opt);
     const double seconds = secondsSince(t1);
 
-    openvdb::GridPtrVec result;
-    for (const auto& g : *grids) result.push_back(g == grid ? out : g);
-    openvdb::MetaMap fileMeta;
-    fileMeta.insertMeta("creator", openvdb::StringMetadata(generatorString()));
-    writeGridsOutput(args, output, result, fileMeta);
+    writeGridsReplacing(args, output, *grids, grid, out);
 
     const bool usesRadius = opt.filter == SmoothFilter::Mean || opt.filter == SmoothFilter::Gaussian ||
                             opt.filter == SmoothFilter::Median;
