@@ -3,9 +3,13 @@
 // captured, for the end-to-end CLI tests.
 #pragma once
 
+#include "TestUtil.h"
+
 #include <levelforge/io/VdbIO.h>
 
 #include <openvdb/openvdb.h>
+
+#include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -66,5 +70,16 @@ inline CliRun runLevelforge(const std::filesystem::path& dir, const std::vector<
     return r;
 }
 #endif
+
+/// A failed command as every CLI test wants it: non-zero status, exactly one line from the
+/// program on stderr and that line an error mentioning @p mention, and no @p output file.
+inline void expectCleanFailure(const CliRun& r, const std::string& output, const std::string& mention)
+{
+    EXPECT_NE(r.code, 0) << r.command;
+    EXPECT_EQ(countLines(r.err, "levelforge: "), 1) << r.err;
+    EXPECT_EQ(countLines(r.err, "levelforge: error:"), 1) << r.err;
+    EXPECT_NE(r.err.find(mention), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(output)) << output;
+}
 
 } // namespace levelforge_test

@@ -69,14 +69,7 @@ openvdb::GridBase::Ptr findGrid(const std::string& path, const std::string& name
     return nullptr;
 }
 
-void expectCleanFailure(const CliRun& r, const std::string& output, const std::string& mention)
-{
-    EXPECT_NE(r.code, 0) << r.command;
-    EXPECT_EQ(countLines(r.err, "levelforge: "), 1) << r.err;
-    EXPECT_EQ(countLines(r.err, "levelforge: error:"), 1) << r.err;
-    EXPECT_NE(r.err.find(mention), std::string::npos) << r.err;
-    EXPECT_FALSE(fs::exists(output)) << output;
-}
+using levelforge_test::expectCleanFailure;
 
 } // namespace
 

@@ -36,13 +36,7 @@ using levelforge_test::CliRun;
 
 CliRun runCli(const fs::path& dir, const std::vector<std::string>& args) { return levelforge_test::runLevelforge(dir, args); }
 
-void expectCleanFailure(const CliRun& r, const std::string& output, const std::string& mention)
-{
-    EXPECT_NE(r.code, 0) << r.command;
-    EXPECT_EQ(countLines(r.err, "levelforge: "), 1) << r.err;
-    EXPECT_NE(r.err.find(mention), std::string::npos) << r.err;
-    EXPECT_FALSE(fs::exists(output)) << output;
-}
+using levelforge_test::expectCleanFailure;
 
 /// A level-set sphere of radius 1 (20 voxels of 0.05) written to @p path.
 void writeSphere(const std::string& path)

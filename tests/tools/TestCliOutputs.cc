@@ -52,13 +52,7 @@ openvdb::GridPtrVecPtr readAll(const std::string& path)
     return levelforge::readGrids(path);
 }
 
-void expectCleanFailure(const CliRun& r, const std::string& output, const std::string& mention)
-{
-    EXPECT_NE(r.code, 0) << r.command;
-    EXPECT_EQ(countLines(r.err, "levelforge: "), 1) << r.err;
-    EXPECT_NE(r.err.find(mention), std::string::npos) << r.err;
-    EXPECT_FALSE(fs::exists(output)) << output;
-}
+using levelforge_test::expectCleanFailure;
 
 } // namespace
 
