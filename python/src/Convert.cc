@@ -64,7 +64,7 @@ py::dict bandStats(const MeshToLevelSetStats& s)
                     "hierarchy_nodes"_a = s.hierarchyNodes, "clusters"_a = s.clusters,
                     "candidate_leaves"_a = s.candidateLeaves, "candidate_voxels"_a = s.candidateVoxels,
                     "active_voxels"_a = s.activeVoxels, "distance_evaluations"_a = s.distanceEvaluations,
-                    "bound_tests"_a = s.boundTests, "node_tests"_a = s.nodeTests,
+                    "bound_tests"_a = s.boundTests, "node_tests"_a = s.nodeTests, "leaf_passes"_a = s.leafPasses,
                     "seconds_hierarchy"_a = s.secondsHierarchy, "seconds_candidates"_a = s.secondsCandidates,
                     "seconds_distance"_a = s.secondsDistance, "seconds_finish"_a = s.secondsFinish);
 }

@@ -140,6 +140,7 @@ void leafFrontier(const Context& ctx, const Coord& origin, Scratch& s)
     const Vec3d lo(origin.x() + 0.5, origin.y() + 0.5, origin.z() + 0.5), hi = lo + Vec3d(7.0);
     const double reach = ctx.limit + ctx.margin, reach2 = reach * reach;
     s.front.clear();
+    s.flat = false;
     if (nodes.empty() || boxBoxDistanceSqr(nodes[0], lo, hi) >= reach2) { s.order.clear(); return; }
     // flat: every cluster within reach, unless there are too many
     bool flat = true;
@@ -177,6 +178,7 @@ void leafFrontier(const Context& ctx, const Coord& origin, Scratch& s)
             s.front.swap(s.next);
         }
     }
+    s.flat = flat;
     const Vec3d centre = (lo + hi) * 0.5;
     s.order.clear();
     for (uint32_t ni : s.front) s.order.emplace_back(boxDistanceSqr(nodes[ni], centre), ni);
@@ -285,6 +287,8 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
     LeafResult res;
     leafFrontier(ctx, origin, s);
     if (s.order.empty()) return res;
+    if (flatLeafDistances(ctx, origin, s, s.leafTri, s.leafCp))
+        return finishFromClosest(ctx, origin, s, wantClosest, s.leafTri, s.leafCp);
     const auto& nodes = ctx.hierarchy.nodes();
 
     // Per voxel (Chang §4.1's culling, with a hierarchy instead of cell layers): the previous
@@ -782,6 +786,7 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
         stats.distanceEvaluations += s.evaluations;
         stats.boundTests += s.boundTests;
         stats.nodeTests += s.nodeTests;
+        stats.leafPasses += s.leafPasses;
         stats.candidateVoxels += s.candidateVoxels;
         stats.activeVoxels += s.activeVoxels;
     }

@@ -49,56 +49,6 @@ void leafCandidates(const Context& ctx, const Coord& origin, std::vector<uint32_
     out.erase(std::unique(out.begin(), out.end()), out.end());
 }
 
-/// computeLeaf()'s per-voxel tail, from the device's closest triangle of every voxel.
-LeafResult finishFromDevice(const Context& ctx, const Coord& origin, Scratch& s, bool wantClosest, const uint32_t* tri)
-{
-    LeafResult res;
-    res.sdf.reset(new FloatLeaf(origin, ctx.background, false));
-    if (wantClosest) {
-        res.cp.reset(new Vec3fLeaf(origin, openvdb::Vec3f(0.0f), false));
-        res.tri.reset(new Int32Leaf(origin, -1, false));
-    }
-    const bool pseudo = ctx.sign == SignMode::Pseudonormal;
-    if (!pseudo) std::fill(s.vd, s.vd + 512, -1.0);
-    const float bg = ctx.background;
-    uint64_t active = 0, found = 0;
-    for (uint32_t v = 0; v < 512; ++v) {
-        const uint32_t t = tri[v];
-        if (t == kNone) continue;
-        ++found;
-        const Vec3d p(origin.x() + int(v >> 6) + 0.5, origin.y() + int((v >> 3) & 7u) + 0.5, origin.z() + int(v & 7u) + 0.5);
-        const Vec3I& T = ctx.mesh.triangles[t];
-        const TriangleClosestPoint cp = closestPointOnTriangle(p, ctx.cellPts[T[0]], ctx.cellPts[T[1]], ctx.cellPts[T[2]]);
-        ++s.evaluations;
-        const double d = std::sqrt(cp.distanceSqr);
-        if (!pseudo) {
-            s.vd[v] = d;
-            if (wantClosest) {
-                s.vcp[v] = openvdb::Vec3f(cp.point - p);
-                s.vtri[v] = int32_t(t);
-            }
-            continue;
-        }
-        const bool inside = ctx.normals.isInside(t, cp, p);
-        if (inside ? d < ctx.intW : d < ctx.extW) {
-            res.sdf->setValueOn(v, float((inside ? -d : d) * ctx.voxelSize));
-            if (wantClosest) {
-                res.cp->setValueOn(v, openvdb::Vec3f(cp.point - p));
-                res.tri->setValueOn(v, int32_t(t));
-            }
-            ++active;
-        } else {
-            res.sdf->setValueOff(v, inside ? -bg : bg);
-        }
-    }
-    s.candidateVoxels += found ? 512 : 0;
-    if (found == 0) return LeafResult{};
-    if (!pseudo) return finishLeaf(ctx, s, res, wantClosest);
-    s.activeVoxels += active;
-    if (active == 0) return LeafResult{};
-    return res;
-}
-
 /// The same from the device's signed squared distances (pseudonormal signs, no closest points):
 /// d = sqrt(|d2|), inside where the sign bit is set; what computeLeaf() computes from the same
 /// triangle, feature and normal, bit for bit.
@@ -129,6 +79,58 @@ LeafResult finishSignedFromDevice(const Context& ctx, const Coord& origin, Scrat
 }
 
 } // namespace
+
+LeafResult finishFromClosest(const Context& ctx, const Coord& origin, Scratch& s, bool wantClosest, const uint32_t* tri,
+                             const TriangleClosestPoint* cps)
+{
+    LeafResult res;
+    res.sdf.reset(new FloatLeaf(origin, ctx.background, false));
+    if (wantClosest) {
+        res.cp.reset(new Vec3fLeaf(origin, openvdb::Vec3f(0.0f), false));
+        res.tri.reset(new Int32Leaf(origin, -1, false));
+    }
+    const bool pseudo = ctx.sign == SignMode::Pseudonormal;
+    if (!pseudo) std::fill(s.vd, s.vd + 512, -1.0);
+    const float bg = ctx.background;
+    uint64_t active = 0, found = 0;
+    for (uint32_t v = 0; v < 512; ++v) {
+        const uint32_t t = tri[v];
+        if (t == kNone) continue;
+        ++found;
+        const Vec3d p(origin.x() + int(v >> 6) + 0.5, origin.y() + int((v >> 3) & 7u) + 0.5, origin.z() + int(v & 7u) + 0.5);
+        const Vec3I& T = ctx.mesh.triangles[t];
+        const TriangleClosestPoint cp =
+            cps ? cps[v] : closestPointOnTriangle(p, ctx.cellPts[T[0]], ctx.cellPts[T[1]], ctx.cellPts[T[2]]);
+        if (!cps) ++s.evaluations;
+        const double d = std::sqrt(cp.distanceSqr);
+        if (!pseudo) {
+            s.vd[v] = d;
+            if (wantClosest) {
+                s.vcp[v] = openvdb::Vec3f(cp.point - p);
+                s.vtri[v] = int32_t(t);
+            }
+            continue;
+        }
+        const bool inside = ctx.normals.isInside(t, cp, p);
+        if (inside ? d < ctx.intW : d < ctx.extW) {
+            res.sdf->setValueOn(v, float((inside ? -d : d) * ctx.voxelSize));
+            if (wantClosest) {
+                res.cp->setValueOn(v, openvdb::Vec3f(cp.point - p));
+                res.tri->setValueOn(v, int32_t(t));
+            }
+            ++active;
+        } else {
+            res.sdf->setValueOff(v, inside ? -bg : bg);
+        }
+    }
+    s.candidateVoxels += found ? 512 : 0;
+    if (found == 0) return LeafResult{};
+    if (!pseudo) return finishLeaf(ctx, s, res, wantClosest);
+    s.activeVoxels += active;
+    if (active == 0) return LeafResult{};
+    return res;
+}
+
 
 bool useDevice(const MeshToLevelSetOptions& o, size_t leaves, std::string& note)
 {
@@ -233,7 +235,7 @@ void deviceDistances(const Context& ctx, const MeshToLevelSetOptions& o, const s
             for (size_t j = r.begin(); j != r.end(); ++j) {
                 const Coord origin(b.leaves[8 * j], b.leaves[8 * j + 1], b.leaves[8 * j + 2]);
                 out[b.slots[j]] = signsOnDevice ? finishSignedFromDevice(ctx, origin, s, tri + 512 * j, sd2 + 512 * j)
-                                                : finishFromDevice(ctx, origin, s, wantClosest, tri + 512 * j);
+                                                : finishFromClosest(ctx, origin, s, wantClosest, tri + 512 * j, nullptr);
             }
         });
         done = b.slots.empty() ? done : b.slots.back() + 1;

@@ -7,6 +7,7 @@
 #include "mesh/LazyPseudoNormals.h"
 #include "mesh/TriangleHierarchy.h"
 
+#include <levelforge/core/TriangleDistance.h>
 #include <levelforge/mesh/FastWindingNumber.h>
 #include <levelforge/mesh/MeshToLevelSet.h>
 
@@ -39,12 +40,35 @@ using namespace mesh_internal;
 constexpr uint32_t kNone = kNoTriangle;
 constexpr size_t kMaxFlat = 4096;   // clusters a leaf lists flat, at most
 constexpr size_t kMaxFrontier = 32; // subtrees a leaf's voxels start their search from, when more
+constexpr size_t kMaxLeafTriangles = 128; // triangles near a leaf that flatLeafDistances() takes, at most
+
+/// A triangle near a leaf, in single precision relative to the leaf's first voxel centre, for
+/// flatLeafDistances(): its plane (unit normal, offset), corners, edges e[k] = a[k+1] − a[k],
+/// edge-line normals m[k] = e[k] × n, 1/|e[k]|² (0 for a zero-length edge), and the voxel rows
+/// (x0..x1, y0..y1) within the band's reach of its box.
+struct LeafTriangle
+{
+    float n[3], off;
+    float a[3][3], e[3][3], m[3][3], inv[3];
+    uint32_t id;
+    int x0, x1, y0, y1;
+};
 
 /// Per-thread scratch reused for every leaf: no per-voxel allocation.
 struct Scratch
 {
     std::vector<uint32_t> front, next;             // the leaf's frontier of hierarchy nodes
     std::vector<std::pair<double, uint32_t>> order; // frontier sorted by distance to the leaf centre
+    bool flat = false;                              // the frontier is clusters only
+    // flatLeafDistances(): the leaf's triangles, their bounds per voxel (512 floats each), the
+    // smallest bound per voxel, and each voxel's closest triangle and point
+    std::vector<uint32_t> leafIds;
+    std::vector<LeafTriangle> leafTris;
+    std::vector<float> leafLb;
+    float leafMin[512], leafThr[512];
+    double leafBest2[512];
+    uint32_t leafTri[512];
+    TriangleClosestPoint leafCp[512];
     std::vector<uint32_t> near;                     // per voxel: the frontier entries within reach
     std::vector<float> fd2;                         // per voxel: their squared distances
     // The frontier's boxes and an 8-ary tree over them: level 0 holds the entries' boxes, level
@@ -59,7 +83,7 @@ struct Scratch
     std::vector<Level> levels;
     size_t nLevels = 0;
     std::vector<std::pair<uint32_t, double>> stack; // traversal stack: node, its box distance²
-    uint64_t evaluations = 0, boundTests = 0, nodeTests = 0, candidateVoxels = 0, activeVoxels = 0;
+    uint64_t evaluations = 0, boundTests = 0, nodeTests = 0, candidateVoxels = 0, activeVoxels = 0, leafPasses = 0;
     std::vector<std::pair<float, uint32_t>> blockList; // a 2×2×2 block's clusters: key, cluster index
     struct WorkPoller* poller = nullptr; // polls the interrupter by work done (null: none)
     uint64_t reported = 0;               // evaluations already handed to the poller
@@ -160,6 +184,25 @@ constexpr double kOnSurface = 1e-9;
 /// Fills the output leaf of `res` with the winding (or unsigned) values of the distances in `s`
 /// (see MeshToLevelSetSign.cc); an empty result when no voxel had a triangle within reach.
 LeafResult finishLeaf(const Context& ctx, Scratch& s, LeafResult& res, bool wantClosest);
+
+/// The leaf's closest triangles when few triangles come near it (Scratch::flat, at most
+/// kMaxLeafTriangles within reach): single-precision distances of all 512 voxels to each of them
+/// in one vectorised pass, then exact evaluation of those within twice the margin of the
+/// smallest, ties to the smaller index, so the same triangle, point and distance as the search
+/// per voxel of computeLeaf(). tri[v] = kNone where no triangle is within the band limit.
+/// Returns false (nothing written) when the leaf is not such a leaf.
+bool flatLeafDistances(const Context& ctx, const Coord& origin, Scratch& s, uint32_t* tri, TriangleClosestPoint* cps);
+
+/// Test hook (tests/mesh/TestFlatLeafDistances.cc): the most triangles flatLeafDistances() takes
+/// (kMaxLeafTriangles by default, 0 turns it off), and whether it runs the baseline build of its
+/// single-precision pass where the CPU has AVX2. Not for use while a conversion runs.
+void setFlatLeafOptionsForTesting(size_t maxTriangles, bool baseline);
+
+/// computeLeaf()'s per-voxel tail from each voxel's closest triangle (kNone: none within the
+/// limit): the sign, the band test, the output leaves. With `cps` the closest points are given;
+/// without, they are evaluated again (MeshToLevelSetDevice.cc).
+LeafResult finishFromClosest(const Context& ctx, const Coord& origin, Scratch& s, bool wantClosest, const uint32_t* tri,
+                             const TriangleClosestPoint* cps);
 
 /// The deferred winding signs of every leaf (Winding without boundary current).
 void resolveDeferred(const Context& ctx, const std::vector<Coord>& origins, std::vector<LeafResult>& leaves,

@@ -154,6 +154,8 @@ struct MeshToLevelSetStats
     uint64_t hierarchyNodes = 0;          ///< nodes of the closest-triangle hierarchy
     uint64_t clusters = 0;                ///< its leaves (clusters of up to 8 triangles)
     uint64_t candidateLeaves = 0;         ///< output leaves searched (within the band limit of a node box)
+    uint64_t leafPasses = 0;              ///< of those, leaves computed by one vectorised pass over their
+                                          ///< few nearby triangles (at most 128) instead of a search per voxel
     uint64_t candidateVoxels = 0;         ///< voxels searched (512 per candidate leaf with anything in reach)
     uint64_t activeVoxels = 0;            ///< voxels in the output band
     uint64_t distanceEvaluations = 0;     ///< exact (double-precision) point–triangle distance evaluations
