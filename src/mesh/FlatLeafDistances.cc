@@ -72,9 +72,35 @@ __attribute__((always_inline)) inline void boundsBody(const LeafTriangle* tris, 
     }
 }
 
+/// rows[t·64 + r] = the lanes (bit k: voxel r·8 + k) of row r whose bound to triangle t is
+/// below the voxel's threshold thr, for the rows of t's range (the others are not written).
+__attribute__((always_inline)) inline void candidatesBody(const LeafTriangle* tris, uint32_t count, const float* lb,
+                                                         const float* thr, uint8_t* rows)
+{
+    for (uint32_t ti = 0; ti < count; ++ti) {
+        const LeafTriangle& T = tris[ti];
+        const float* L = lb + size_t(ti) * 512;
+        uint8_t* R = rows + size_t(ti) * 64;
+        for (int i = T.x0; i <= T.x1; ++i)
+            for (int j = T.y0; j <= T.y1; ++j) {
+                const int row = i * 8 + j;
+                const I8 below = *reinterpret_cast<const F8*>(L + row * 8) < *reinterpret_cast<const F8*>(thr + row * 8);
+                uint8_t bits = 0;
+                if (anyLane(below))
+                    for (int k = 0; k < 8; ++k) bits = uint8_t(bits | (below[k] ? 1u << k : 0u));
+                R[row] = bits;
+            }
+    }
+}
+
 void boundsBaseline(const LeafTriangle* tris, uint32_t count, float reach2, float* lb, float* fmin)
 {
     boundsBody(tris, count, reach2, lb, fmin);
+}
+
+void candidatesBaseline(const LeafTriangle* tris, uint32_t count, const float* lb, const float* thr, uint8_t* rows)
+{
+    candidatesBody(tris, count, lb, thr, rows);
 }
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -83,6 +109,12 @@ __attribute__((target("avx2"))) void boundsAvx2(const LeafTriangle* tris, uint32
                                                 float* fmin)
 {
     boundsBody(tris, count, reach2, lb, fmin);
+}
+
+__attribute__((target("avx2"))) void candidatesAvx2(const LeafTriangle* tris, uint32_t count, const float* lb,
+                                                    const float* thr, uint8_t* rows)
+{
+    candidatesBody(tris, count, lb, thr, rows);
 }
 #endif
 
@@ -96,6 +128,15 @@ void leafBounds(const LeafTriangle* tris, uint32_t count, float reach2, float* l
     if (avx2 && !gBaseline.load(std::memory_order_relaxed)) { boundsAvx2(tris, count, reach2, lb, fmin); return; }
 #endif
     boundsBaseline(tris, count, reach2, lb, fmin);
+}
+
+void leafCandidates(const LeafTriangle* tris, uint32_t count, const float* lb, const float* thr, uint8_t* rows)
+{
+#if defined(LEVELFORGE_FLAT_AVX2)
+    static const bool avx2 = __builtin_cpu_supports("avx2");
+    if (avx2 && !gBaseline.load(std::memory_order_relaxed)) { candidatesAvx2(tris, count, lb, thr, rows); return; }
+#endif
+    candidatesBaseline(tris, count, lb, thr, rows);
 }
 
 /// |(3.5, 3.5, 3.5)|: the farthest a voxel centre of a leaf is from the leaf's centre.
@@ -211,19 +252,18 @@ bool flatLeafDistances(const Context& ctx, const Coord& origin, Scratch& s, uint
     }
     // triangle by triangle in increasing index, row by row: a later triangle replaces the best
     // only when strictly closer, so ties keep the smaller index
+    s.leafRows.resize(size_t(count) * 64);
+    leafCandidates(s.leafTris.data(), count, s.leafLb.data(), s.leafThr, s.leafRows.data());
     for (uint32_t ti = 0; ti < count; ++ti) {
         const LeafTriangle& T = s.leafTris[ti];
-        const float* L = s.leafLb.data() + size_t(ti) * 512;
+        const uint8_t* R = s.leafRows.data() + size_t(ti) * 64;
         const Vec3I& tr = ctx.mesh.triangles[T.id];
         const Vec3d &A = ctx.cellPts[tr[0]], &B = ctx.cellPts[tr[1]], &C = ctx.cellPts[tr[2]];
         for (int i = T.x0; i <= T.x1; ++i)
-            for (int j = T.y0; j <= T.y1; ++j) {
-                const uint32_t row = uint32_t(i * 64 + j * 8);
-                const I8 below = *reinterpret_cast<const F8*>(L + row) < *reinterpret_cast<const F8*>(s.leafThr + row);
-                if (!anyLane(below)) continue;
-                for (uint32_t k = 0; k < 8; ++k) {
-                    const uint32_t v = row + k;
-                    if (!below[k]) continue;
+            for (int j = T.y0; j <= T.y1; ++j)
+                for (uint32_t bits = R[i * 8 + j]; bits; bits &= bits - 1) {
+                    const int k = __builtin_ctz(bits);
+                    const uint32_t v = uint32_t(i * 64 + j * 8 + k);
                     const Vec3d p(base[0] + double(i), base[1] + double(j), base[2] + double(k));
                     const TriangleClosestPoint cp = closestPointOnTriangle(p, A, B, C);
                     ++s.evaluations;
@@ -233,7 +273,6 @@ bool flatLeafDistances(const Context& ctx, const Coord& origin, Scratch& s, uint
                         cps[v] = cp;
                     }
                 }
-            }
     }
     return true;
 }

@@ -65,6 +65,7 @@ struct Scratch
     std::vector<uint32_t> leafIds;
     std::vector<LeafTriangle> leafTris;
     std::vector<float> leafLb;
+    std::vector<uint8_t> leafRows; // per triangle and row of 8 voxels: the voxels to evaluate exactly
     float leafMin[512], leafThr[512];
     double leafBest2[512];
     uint32_t leafTri[512];
