@@ -7,6 +7,7 @@
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/TriangleDistance.h>
 #include <levelforge/mesh/MeshToLevelSet.h>
+#include <levelforge/reference/ExactReference.h>
 #include <levelforge/reference/MeshShapes.h>
 #include <levelforge/scan/TetScanConversion.h>
 
@@ -157,4 +158,35 @@ TEST(VoxelBudget, AHugeTriangleIsRefusedBeforeTheHierarchySplitsIt)
         EXPECT_NE(msg.find("largest triangle"), std::string::npos) << msg;
         EXPECT_NE(msg.find("working memory"), std::string::npos) << msg;
     }
+}
+
+TEST(VoxelBudget, ALongObliqueNeedleIsNotRefusedForItsBox)
+{
+    // A stray vertex far along the diagonal (a bad export): one needle ~10^4 voxels long whose
+    // box is ~6000 voxels on every axis. Its pieces follow its length (~10^3), not its box
+    // (~6000² / 64); with a budget of 5·10^6 voxels the first guard used to refuse it (its box
+    // alone counted 40 MB of pieces); now it converts, exactly.
+    TriangleMesh m = makeIcosphere(Vec3d(0.0), 1.0, 3);
+    const uint32_t first = uint32_t(m.points.size());
+    m.points.emplace_back(1.5, 0.0, 0.0);
+    m.points.emplace_back(1.5, 0.01, 0.0);
+    m.points.emplace_back(120.0, 120.0, 120.0);
+    m.triangles.emplace_back(first, first + 1, first + 2);
+    MeshToLevelSetOptions o;
+    o.voxelSize = 0.02;
+    o.exteriorWidth = o.interiorWidth = 1.0f;
+    o.maxVoxels = 5'000'000;
+    o.sign = SignMode::Unsigned; // the needle has no inside
+    auto grid = meshToLevelSet(m, o);
+    ASSERT_TRUE(grid);
+    ExactReference ref(m);
+    size_t checked = 0;
+    double maxError = 0.0;
+    for (auto it = grid->cbeginValueOn(); it; ++it) {
+        const Vec3d p = grid->indexToWorld(it.getCoord());
+        maxError = std::max(maxError, std::abs(double(*it) - std::abs(ref.signedDistance(p))) / o.voxelSize);
+        ++checked;
+    }
+    EXPECT_GT(checked, 10000u);
+    EXPECT_LE(maxError, 1e-4);
 }
