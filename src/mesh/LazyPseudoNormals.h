@@ -55,8 +55,11 @@ public:
     template<typename Closest>
     bool isInside(uint32_t tri, const Closest& closest, const Vec3d& p) const
     {
-        return (p - closest.point).dot(normal(tri, closest.feature)) < 0.0;
+        return insideOf(p, closest.point, normal(tri, closest.feature));
     }
+    /// The same rule from the feature's normal n (already looked up): p is inside when it lies
+    /// behind n at its closest point.
+    static bool insideOf(const Vec3d& p, const Vec3d& closestPoint, const Vec3d& n) { return (p - closestPoint).dot(n) < 0.0; }
 
 private:
     const TriangleMesh& mMesh;

@@ -66,6 +66,14 @@ struct Scratch
     std::vector<LeafTriangle> leafTris;
     std::vector<float> leafLb;
     std::vector<uint8_t> leafRows; // per triangle and row of 8 voxels: the voxels to evaluate exactly
+    // pseudonormals asked for lately (direct-mapped by triangle and feature): neighbouring voxels
+    // mostly share their closest feature, and a vertex normal costs an acos per incident triangle
+    struct CachedNormal
+    {
+        uint64_t key = ~uint64_t(0);
+        Vec3d n;
+    };
+    CachedNormal normalCache[256];
     float leafMin[512], leafThr[512];
     double leafBest2[512];
     uint32_t leafTri[512];
@@ -108,6 +116,19 @@ struct Scratch
     std::vector<std::pair<std::array<double, 6>, int>> halfEdges;
     uint64_t windingEvaluations = 0, windingGroups = 0, windingIndividual = 0;
 };
+
+/// The pseudonormal of feature f of triangle t, through the scratch's cache: the same vector
+/// bit for bit as LazyPseudoNormals::normal().
+inline const Vec3d& cachedNormal(const LazyPseudoNormals& normals, Scratch& s, uint32_t t, TriangleFeature f)
+{
+    const uint64_t key = uint64_t(t) * 8u + uint64_t(f);
+    Scratch::CachedNormal& e = s.normalCache[(key * 0x9E3779B97F4A7C15ull) >> 56];
+    if (e.key != key) {
+        e.key = key;
+        e.n = normals.normal(t, f);
+    }
+    return e.n;
+}
 
 /// Polls the interrupter by work done, not by time: once for every kEvaluationsPerPoll exact
 /// evaluations of all threads together (well under a millisecond of work each), also from
