@@ -131,8 +131,9 @@ openvdb::GridCPtrVec withParallelBuffers(const openvdb::GridPtrVec& grids)
     openvdb::GridCPtrVec out;
     out.reserve(grids.size());
     for (const auto& g : grids) {
-        if (g && typeid(*g) == typeid(openvdb::FloatGrid))
-            out.push_back(std::make_shared<ParallelBufferFloatGrid>(static_cast<const openvdb::FloatGrid&>(*g)));
+        const openvdb::GridBase* base = g.get();
+        if (base && typeid(*base) == typeid(openvdb::FloatGrid))
+            out.push_back(std::make_shared<ParallelBufferFloatGrid>(static_cast<const openvdb::FloatGrid&>(*base)));
         else
             out.push_back(g);
     }

@@ -18,10 +18,10 @@ namespace {
 // Eight voxels along z per vector; on x86-64 the body is compiled twice, for the baseline (two
 // SSE halves) and for AVX2 (one register), picked at run time. Which build runs changes no
 // result: the vectors only choose which triangles are evaluated exactly, with a margin.
-typedef float F8 __attribute__((vector_size(32), aligned(4)));
-typedef int32_t I8 __attribute__((vector_size(32), aligned(4)));
+typedef float F8 __attribute__((vector_size(32), aligned(4), may_alias));
+typedef int32_t I8 __attribute__((vector_size(32), aligned(4), may_alias));
 
-__attribute__((always_inline)) inline bool anyLane(I8 m)
+__attribute__((always_inline)) inline bool anyLane(const I8& m)
 {
     int32_t w[8];
     std::memcpy(w, &m, sizeof(w));
