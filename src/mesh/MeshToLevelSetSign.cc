@@ -495,13 +495,21 @@ void resolveDeferred(const Context& ctx, const std::vector<Coord>& origins, std:
             const size_t m = size_t(it - origins.begin());
             const DeferredWinding* b = leaves[m].deferred.get();
             if (!b) continue;
+            // a face's 64 voxel pairs mostly join the same two groups: a pair just joined is
+            // skipped (the components, and their smallest-index roots, are the same)
+            uint64_t lastA = ~uint64_t(0), lastB = ~uint64_t(0);
             for (int u = 0; u < 8; ++u)
                 for (int v = 0; v < 8; ++v) {
                     int ia, ib; // the voxel at the face of a, its neighbour in b
                     if (axis == 0) { ia = (7 << 6) | (u << 3) | v; ib = (u << 3) | v; }
                     else if (axis == 1) { ia = (u << 6) | (7 << 3) | v; ib = (u << 6) | v; }
                     else { ia = (u << 6) | (v << 3) | 7; ib = (u << 6) | (v << 3); }
-                    if (lowerOf(*a, ia) + lowerOf(*b, ib) > 1.0 + 1e-9) unite(first[l] + a->group[ia], first[m] + b->group[ib]);
+                    if (!(lowerOf(*a, ia) + lowerOf(*b, ib) > 1.0 + 1e-9)) continue;
+                    const uint64_t ga = first[l] + a->group[ia], gb = first[m] + b->group[ib];
+                    if (ga == lastA && gb == lastB) continue;
+                    lastA = ga;
+                    lastB = gb;
+                    unite(ga, gb);
                 }
         }
     }
