@@ -215,10 +215,15 @@ LeafResult finishLeaf(const Context& ctx, Scratch& s, LeafResult& res, bool want
 /// Returns false (nothing written) when the leaf is not such a leaf.
 bool flatLeafDistances(const Context& ctx, const Coord& origin, Scratch& s, uint32_t* tri, TriangleClosestPoint* cps);
 
-/// Test hook (tests/mesh/TestFlatLeafDistances.cc): the most triangles flatLeafDistances() takes
-/// (kMaxLeafTriangles by default, 0 turns it off), and whether it runs the baseline build of its
-/// single-precision pass where the CPU has AVX2. Not for use while a conversion runs.
-void setFlatLeafOptionsForTesting(size_t maxTriangles, bool baseline);
+/// The builds of flatLeafDistances()' vector passes, narrowest first.
+enum class FlatLeafIsa { Baseline = 0, Avx2 = 1 };
+
+/// Test hooks (tests/mesh/TestFlatLeafDistances.cc): the most triangles flatLeafDistances() takes
+/// (kMaxLeafTriangles by default, 0 turns it off) and the widest build of its vector passes it
+/// may use (Avx2 by default: the widest the CPU has); which build it then uses. Not for use
+/// while a conversion runs.
+void setFlatLeafOptionsForTesting(size_t maxTriangles, FlatLeafIsa widest);
+FlatLeafIsa flatLeafIsaForTesting();
 
 /// computeLeaf()'s per-voxel tail from each voxel's closest triangle (kNone: none within the
 /// limit): the sign, the band test, the output leaves. With `cps` the closest points are given;

@@ -2,7 +2,7 @@
 // The exact band's one-pass leaf kernel (src/mesh/FlatLeafDistances.cc): for leaves with few
 // triangles nearby it replaces the search per voxel, and must give the same grids bit for bit —
 // distances, signs, active voxels, closest points and closest triangles, ties included — in
-// every sign mode, with its AVX2 and baseline builds, and stay exact against the reference.
+// every sign mode, with each of its builds (AVX2, baseline), and stay exact against the reference.
 #include "TestUtil.h"
 #include "mesh/MeshToLevelSetInternal.h"
 #include "mesh/OffSweetSpotShapes.h"
@@ -24,11 +24,15 @@ namespace {
 /// Restores the kernel's defaults when a test ends, whatever happens.
 struct FlatLeafSetting
 {
-    FlatLeafSetting(size_t maxTriangles, bool baseline)
+    FlatLeafSetting(size_t maxTriangles, meshtols_internal::FlatLeafIsa widest)
     {
-        meshtols_internal::setFlatLeafOptionsForTesting(maxTriangles, baseline);
+        meshtols_internal::setFlatLeafOptionsForTesting(maxTriangles, widest);
     }
-    ~FlatLeafSetting() { meshtols_internal::setFlatLeafOptionsForTesting(meshtols_internal::kMaxLeafTriangles, false); }
+    ~FlatLeafSetting()
+    {
+        meshtols_internal::setFlatLeafOptionsForTesting(meshtols_internal::kMaxLeafTriangles,
+                                                        meshtols_internal::FlatLeafIsa::Avx2);
+    }
 };
 
 struct Conversion
@@ -37,9 +41,12 @@ struct Conversion
     MeshToLevelSetStats stats;
 };
 
-Conversion convert(const TriangleMesh& mesh, const MeshToLevelSetOptions& opt, size_t maxTriangles, bool baseline)
+using meshtols_internal::FlatLeafIsa;
+
+Conversion convert(const TriangleMesh& mesh, const MeshToLevelSetOptions& opt, size_t maxTriangles,
+                   FlatLeafIsa widest = FlatLeafIsa::Avx2)
 {
-    FlatLeafSetting setting(maxTriangles, baseline);
+    FlatLeafSetting setting(maxTriangles, widest);
     Conversion r;
     r.grids = meshToLevelSetWithClosestPoints(mesh, opt, &r.stats);
     return r;
@@ -101,11 +108,16 @@ TEST(FlatLeafDistances, SameGridsAsTheSearchPerVoxelInEverySignMode)
                 opt.interiorWidth = band;
                 opt.sign = mode;
                 const std::string what = c.name + ", band " + std::to_string(int(band)) + ", sign " + toString(mode);
-                const Conversion search = convert(c.mesh, opt, 0, false);
+                const Conversion search = convert(c.mesh, opt, 0);
                 EXPECT_EQ(search.stats.leafPasses, 0u) << what;
-                for (const bool baseline : {false, true}) {
-                    const Conversion pass = convert(c.mesh, opt, meshtols_internal::kMaxLeafTriangles, baseline);
-                    const std::string w = what + (baseline ? ", baseline build" : "");
+                // every build this CPU has: AVX2, baseline
+                for (const FlatLeafIsa widest : {FlatLeafIsa::Avx2, FlatLeafIsa::Baseline}) {
+                    {
+                        FlatLeafSetting probe(meshtols_internal::kMaxLeafTriangles, widest);
+                        if (meshtols_internal::flatLeafIsaForTesting() != widest) continue; // not on this CPU
+                    }
+                    const Conversion pass = convert(c.mesh, opt, meshtols_internal::kMaxLeafTriangles, widest);
+                    const std::string w = what + ", build " + std::to_string(int(widest));
                     EXPECT_GT(pass.stats.leafPasses, 0u) << w;
                     expectSameGrid(*search.grids.levelSet, *pass.grids.levelSet, w + ": level set");
                     expectSameGrid(*search.grids.closestPoints, *pass.grids.closestPoints, w + ": closest points");
@@ -125,7 +137,7 @@ TEST(FlatLeafDistances, EveryLeafInOnePassIsExact)
         opt.voxelCount = c.voxelCount;
         opt.voxelSize = c.voxelSize;
         opt.sign = SignMode::Pseudonormal;
-        const Conversion r = convert(c.mesh, opt, 1u << 20, false);
+        const Conversion r = convert(c.mesh, opt, 1u << 20);
         EXPECT_GE(10 * r.stats.leafPasses, 9 * r.stats.candidateLeaves) << c.name << ": " << r.stats.leafPasses << " of " << r.stats.candidateLeaves;
         ExactReference ref(c.mesh);
         const BandErrorReport e = compareToReference(*r.grids.levelSet, ref, opt.exteriorWidth, opt.interiorWidth);
