@@ -85,4 +85,8 @@ struct VdbHeaderSummary
 ///         b)", with every length printed as a number, never as the data it announces.
 VdbHeaderSummary checkVdbHeader(const std::string& path);
 
+/// For tests: how many float grids writeGridsAtomic() has written with their leaf buffers
+/// compressed in parallel (VdbIO.cc's ParallelBufferFloatGrid) since the process started.
+uint64_t parallelBufferGridsWritten();
+
 } // namespace levelforge::vdbio_internal

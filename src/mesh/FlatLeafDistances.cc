@@ -223,9 +223,17 @@ bool flatLeafDistances(const Context& ctx, const Coord& origin, Scratch& s, uint
             radius = std::max({radius, std::abs(lo), std::abs(hi)});
         }
         if (empty) continue;
-        const Vec3d nd = (P[1] - P[0]).cross(P[2] - P[0]);
+        const Vec3d e1 = P[1] - P[0], e2 = P[2] - P[0];
+        const Vec3d nd = e1.cross(e2);
         const double len = nd.length();
-        if (!(len > 0.0)) continue; // degenerate triangles are not in the hierarchy; never here
+        // The bounds here must be right both ways (a bound too low lowers a voxel's threshold
+        // and could leave its closest triangle out), so the unit normal must be: its direction
+        // error from the double cross product is about 4ε|e1||e2| / |e1 × e2|, times the
+        // distance to the plane's points. A sliver for which that comes near the margin (or
+        // whose cell-space corners came out collinear) sends the leaf to the search per voxel,
+        // which only needs lower bounds.
+        const double reachOfPlane = radius + 14.0;
+        if (!(len > 0.0) || 1e-15 * e1.length() * e2.length() / len * reachOfPlane > 0.25 * ctx.margin) return false;
         LeafTriangle T;
         T.id = id;
         T.x0 = range[0][0];

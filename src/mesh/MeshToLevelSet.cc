@@ -646,7 +646,7 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
     // real volume at leaf resolution. But the hierarchy splits triangles longer than 8 cells
     // into pieces, so its size follows the triangles' extent in cells too: first a guard that
     // needs no hierarchy, from a lower bound of the band (the band of the largest triangle alone,
-    // 2 · limit · its area) and the pieces' memory (about 72 bytes a piece).
+    // 2 · limit · its area) and the pieces' memory (about 160 bytes a piece).
     {
         double largestBand = 0.0, pieceBytes = 0.0;
         for (uint32_t t : use) {
@@ -656,10 +656,15 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
             const Vec3d& c = cellPts[tri[2]];
             largestBand = std::max(largestBand, 2.0 * limit * 0.5 * (b - a).cross(c - a).length());
             // pieces of at most 8 cells: about area / 64 for a wide triangle, length / 8 for a
-            // needle (an oblique one too: its box is large, its pieces are not); 4x that
-            const double area = 0.5 * (b - a).cross(c - a).length();
-            const double perimeter = (b - a).length() + (c - b).length() + (a - c).length();
-            if (perimeter > 24.0) pieceBytes += 72.0 * (area / 16.0 + perimeter / 4.0 + 1.0);
+            // needle (an oblique one too: its box is large, its pieces are not); 4x that, at
+            // ~160 bytes a piece (item, box, its share of a cluster and of the nodes)
+            double extent = 0.0;
+            for (int k = 0; k < 3; ++k) extent = std::max(extent, std::max({a[k], b[k], c[k]}) - std::min({a[k], b[k], c[k]}));
+            if (extent > 8.0) {
+                const double area = 0.5 * (b - a).cross(c - a).length();
+                const double perimeter = (b - a).length() + (c - b).length() + (a - c).length();
+                pieceBytes += 160.0 * (area / 16.0 + perimeter / 4.0 + 1.0);
+            }
         }
         detail::VoxelBudgetRequest req;
         req.operation = "mesh to level set";
