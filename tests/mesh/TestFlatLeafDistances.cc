@@ -85,6 +85,16 @@ std::vector<Case> cases()
     out.push_back({"sliver sphere", makeSliverSphere(600, 4, 1.0), 96, 0.0});
     out.push_back({"vertex fan", makeVertexFan(300, 1.0, 0.6), 80, 0.0});
     out.push_back({"needle", makeNeedle(3.0, 0.001), 0, 0.01});
+    {
+        // a needle 300 voxels long and 1e-9 voxels wide (its normal is not exact enough for the
+        // pass: its leaves take the search) beside a sphere (whose leaves take the pass)
+        TriangleMesh m = makeNeedle(3.0, 1e-11);
+        const TriangleMesh sphere = makeIcosphere(Vec3d(1.5, 1.0, 0.0), 0.5, 3);
+        const uint32_t base = uint32_t(m.points.size());
+        m.points.insert(m.points.end(), sphere.points.begin(), sphere.points.end());
+        for (const Vec3I& t : sphere.triangles) m.triangles.emplace_back(t[0] + base, t[1] + base, t[2] + base);
+        out.push_back({"extreme needle beside a sphere", m, 0, 0.01});
+    }
     // a broken soup: open, overlapping, needles and slivers (winding and unsigned signs)
     out.push_back({"triangle soup", makeRandomTriangles(400, 11, BBoxd(Vec3d(-1.0), Vec3d(1.0)), 0.9), 72, 0.0});
     return out;
@@ -138,7 +148,11 @@ TEST(FlatLeafDistances, EveryLeafInOnePassIsExact)
         opt.voxelSize = c.voxelSize;
         opt.sign = SignMode::Pseudonormal;
         const Conversion r = convert(c.mesh, opt, 1u << 20);
-        EXPECT_GE(10 * r.stats.leafPasses, 9 * r.stats.candidateLeaves) << c.name << ": " << r.stats.leafPasses << " of " << r.stats.candidateLeaves;
+        if (c.name == "extreme needle beside a sphere") // the needle's leaves go to the search
+            EXPECT_LT(r.stats.leafPasses, r.stats.candidateLeaves) << c.name;
+        else
+            EXPECT_GE(10 * r.stats.leafPasses, 9 * r.stats.candidateLeaves)
+                << c.name << ": " << r.stats.leafPasses << " of " << r.stats.candidateLeaves;
         ExactReference ref(c.mesh);
         const BandErrorReport e = compareToReference(*r.grids.levelSet, ref, opt.exteriorWidth, opt.interiorWidth);
         EXPECT_GT(e.checkedVoxels, 0u) << c.name;
