@@ -29,7 +29,7 @@ __attribute__((always_inline)) inline bool anyLane(const I8& m)
 }
 
 
-/// The single-precision squared distance from the lanes' voxels, at (qx, qy[lane], qz[lane])
+/// The single-precision squared distance from the lanes' voxels, at (qx, qy, lane)
 /// relative to the leaf's first voxel centre, to triangle T: the plane distance where the point
 /// projects inside the three edges, the nearest edge segment otherwise (the formula of the
 /// cluster bounds, TriangleHierarchy.h), or the plane distance alone when every lane of the
