@@ -6,6 +6,7 @@
 #include "gpu/VulkanLeafDistance.h"
 
 #include <cstdlib>
+#include <filesystem>
 #include <mutex>
 
 namespace levelforge {
@@ -28,6 +29,27 @@ ComputeDevice parseComputeDevice(const std::string& text)
     throw InvalidArgumentError("unknown device '" + text + "' (expected cpu, vulkan or auto)");
 }
 
+namespace {
+/// Whether this machine shows the kernel device node of a GPU. A hardware GPU's Vulkan driver
+/// opens one: /dev/dri/renderD* (Mesa's and AMD's drivers), /dev/nvidia0 or /dev/nvidiactl
+/// (NVIDIA's), /dev/dxg (WSL2). Without any, the only Vulkan devices can be software ones
+/// (lavapipe), so Auto knows there is no discrete GPU without loading the drivers (about 0.1 s:
+/// lavapipe loads LLVM). Always true off Linux.
+bool hasGpuDeviceNode()
+{
+#ifdef __linux__
+    std::error_code ec;
+    for (const char* node : {"/dev/nvidiactl", "/dev/nvidia0", "/dev/dxg"})
+        if (std::filesystem::exists(node, ec)) return true;
+    for (std::filesystem::directory_iterator it("/dev/dri", ec), end; !ec && it != end; it.increment(ec))
+        if (it->path().filename().string().rfind("renderD", 0) == 0) return true;
+    return false;
+#else
+    return true;
+#endif
+}
+} // namespace
+
 bool autoUsesVulkan(std::string& why)
 {
     const char* env = std::getenv("LEVELFORGE_VULKAN_DEVICE");
@@ -40,6 +62,11 @@ bool autoUsesVulkan(std::string& why)
     static bool discrete = false;
     static std::string reason;
     std::call_once(once, [] {
+        if (!hasGpuDeviceNode()) {
+            reason = "no GPU on this machine (no /dev/dri/renderD*, /dev/nvidia* or /dev/dxg device node), so no "
+                     "discrete GPU; the Vulkan devices were not probed";
+            return;
+        }
         const VulkanDeviceList list = listVulkanDevices();
         for (const VulkanDeviceInfo& d : list.devices)
             if (d.chosen && d.type == "discrete") discrete = true;

@@ -91,7 +91,9 @@ VulkanDeviceList listVulkanDevices();
 
 /// @brief Whether ComputeDevice::Auto may use the Vulkan device for large work: a device picked
 ///        by LEVELFORGE_VULKAN_DEVICE (not `none`), else the chosen device when it is a discrete
-///        GPU. The device list is read once per process (the environment each time).
+///        GPU. The device list is read once per process (the environment each time). On a Linux
+///        machine without a GPU's device node (/dev/dri/renderD*, /dev/nvidia*, /dev/dxg) the
+///        answer is no without loading the Vulkan drivers (lavapipe's load costs about 0.1 s).
 /// @param[out] why  when not: the sentence a fallback note gives (e.g. "no discrete Vulkan GPU")
 /// @return true when Auto should use the device
 bool autoUsesVulkan(std::string& why);
