@@ -115,6 +115,7 @@ struct FastWindingNumber::Impl
     std::vector<fwn_internal::CurrentEdge> edges;
     std::vector<fwn_internal::EdgeNode> edgeNodes;
     uint64_t triangleCount = 0;
+    uint32_t leafSize = 8; // triangles per leaf cluster of this tree (options, see build())
 
     // ---------------------------------------------------------------- construction
     struct Item
@@ -129,7 +130,7 @@ struct FastWindingNumber::Impl
     {
         auto it = subtreeSize.find(n);
         if (it != subtreeSize.end()) return it->second;
-        const size_t c = n <= opt.leafSize ? 1 : 1 + countNodes(n / 2) + countNodes(n - n / 2);
+        const size_t c = n <= leafSize ? 1 : 1 + countNodes(n / 2) + countNodes(n - n / 2);
         subtreeSize[n] = c;
         return c;
     }
@@ -155,20 +156,23 @@ struct FastWindingNumber::Impl
         }
         triangleCount = items.size();
         if (items.empty()) return;
+        // the boundary currents first: without any, w is piecewise constant, only a few
+        // estimates are made, and the coarser tree is cheaper to build
+        buildEdges(mesh, ok);
+        leafSize = edges.empty() && opt.leafSizeWithoutCurrent > 0 ? opt.leafSizeWithoutCurrent : opt.leafSize;
         countNodes(items.size());
         nodes.resize(countNodes(items.size()));
         tri.resize(9 * items.size());
         second.resize(nodes.size()); // the full C_ijk, for the parents' translation; freed after
         buildRange(mesh, items, 0, items.size(), 0);
         std::vector<fwn_internal::Second>().swap(second);
-        buildEdges(mesh, ok);
     }
 
     void buildRange(const TriangleMesh& mesh, std::vector<Item>& items, size_t b, size_t e, uint32_t me)
     {
         Node& n = nodes[me];
         const size_t count = e - b;
-        if (count <= opt.leafSize) {
+        if (count <= leafSize) {
             n.first = uint32_t(b);
             n.count = uint32_t(count);
             n.left = n.right = 0;
@@ -506,6 +510,7 @@ struct FastWindingNumber::Impl
         Estimate est;
         if (nodes.empty()) return est;
         double sum = 0.0, bound = 0.0;
+        winding_internal::SolidAngleSum near; // the near field's exact solid angles, one atan2
         uint32_t stack[128];
         int sp = 0;
         stack[sp++] = 0;
@@ -520,15 +525,14 @@ struct FastWindingNumber::Impl
                 continue;
             }
             if (n.count > 0) {
-                for (uint32_t i = n.first; i < n.first + n.count; ++i)
-                    sum += triangleSolidAngle(Vec3d(corner(i, 0)), Vec3d(corner(i, 1)), Vec3d(corner(i, 2)), q);
+                for (uint32_t i = n.first; i < n.first + n.count; ++i) near.add(corner(i, 0), corner(i, 1), corner(i, 2), q.asPointer());
                 est.exactTriangles += n.count;
                 continue;
             }
             stack[sp++] = n.right;
             stack[sp++] = n.left;
         }
-        est.value = sum / (4.0 * kPi);
+        est.value = (sum + near.value()) / (4.0 * kPi);
         est.errorBound = bound / (4.0 * kPi);
         return est;
     }
@@ -546,6 +550,11 @@ struct FastWindingNumber::Impl
         double r = 0.0;
         for (size_t i = 0; i < n; ++i) r = std::max(r, (q[i] - c).length());
         double dummy = 0.0;
+        // the near field's exact solid angles, one product per point (one atan2 each)
+        winding_internal::SolidAngleSum nearStack[64];
+        std::vector<winding_internal::SolidAngleSum> nearHeap;
+        if (n > 64) nearHeap.resize(n);
+        winding_internal::SolidAngleSum* near = n > 64 ? nearHeap.data() : nearStack;
         uint32_t stack[128];
         int sp = 0;
         stack[sp++] = 0;
@@ -563,16 +572,14 @@ struct FastWindingNumber::Impl
                 continue;
             }
             if (nd.count > 0) {
-                for (uint32_t t = nd.first; t < nd.first + nd.count; ++t) {
-                    const Vec3d a(corner(t, 0)), b(corner(t, 1)), cc(corner(t, 2));
-                    for (size_t i = 0; i < n; ++i) out[i] += triangleSolidAngle(a, b, cc, q[i]);
-                }
+                for (uint32_t t = nd.first; t < nd.first + nd.count; ++t)
+                    for (size_t i = 0; i < n; ++i) near[i].add(corner(t, 0), corner(t, 1), corner(t, 2), q[i].asPointer());
                 continue;
             }
             stack[sp++] = nd.right;
             stack[sp++] = nd.left;
         }
-        for (size_t i = 0; i < n; ++i) out[i] /= 4.0 * kPi;
+        for (size_t i = 0; i < n; ++i) out[i] = (out[i] + near[i].value()) / (4.0 * kPi);
     }
 
     /// Triangles (leaf-order indices) whose box meets [lo, hi].
@@ -741,6 +748,10 @@ FastWindingNumber::FastWindingNumber(const TriangleMesh& mesh, const FastWinding
     if (options.leafSize < 1 || options.leafSize > 64) {
         throw InvalidArgumentError("fast winding number: the leaf size must be in [1, 64], got " +
                                    std::to_string(options.leafSize));
+    }
+    if (options.leafSizeWithoutCurrent > 64) {
+        throw InvalidArgumentError("fast winding number: the leaf size without boundary current must be in [0, 64], got " +
+                                   std::to_string(options.leafSizeWithoutCurrent));
     }
     mImpl->opt = options;
     mImpl->build(mesh);

@@ -687,6 +687,7 @@ LevelSetWithClosestPoints convert(const TriangleMesh& mesh, const MeshToLevelSet
         const auto tw = Clock::now();
         FastWindingNumberOptions fo;
         fo.accuracy = options.windingAccuracy;
+        fo.leafSizeWithoutCurrent = 64; // (without boundary current: a few estimates only)
         int64_t leftOut = -1;
         fwn = winding_internal::signingWindingNumber(mesh, fo, leftOut);
         if (leftOut >= 0) {

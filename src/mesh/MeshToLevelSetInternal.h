@@ -102,10 +102,10 @@ struct Scratch
     double vd[512];
     openvdb::Vec3f vcp[512];
     int32_t vtri[512];
-    uint8_t member[512], inside[512];
-    int32_t hops[512], hopsRep[512];
+    uint8_t inside[512];
+    int32_t hopsRep[512];
     uint8_t inGroup[512] = {};
-    std::vector<uint32_t> group, group2, groupStart, groupRep, groupVoxels, tris, undecided;
+    std::vector<uint32_t> group2, groupStart, groupRep, groupVoxels, tris, undecided;
     std::vector<Vec3d> points;
     std::vector<double> values;
     // the local exact tier: the triangles near the leaf, the boundary of their union (a, b,

@@ -21,6 +21,42 @@ namespace meshtols_internal {
 
 namespace {
 
+/// The groups of a leaf's voxels: connected components of 6-neighbours with no surface between
+/// them (lower[a] + lower[b] > 1), numbered in the order of their smallest voxel, into label[].
+/// A union-find over the +x, +y, +z neighbours (the smaller index stays the root) gives the
+/// same numbering as a breadth-first search from each unlabelled voxel in increasing order, at
+/// half the tests. Returns the number of groups.
+uint16_t leafGroups(const double* lower, uint16_t* label)
+{
+    uint16_t parent[512];
+    for (uint16_t i = 0; i < 512; ++i) parent[i] = i;
+    const auto find = [&parent](uint16_t x) {
+        while (parent[x] != x) x = parent[x] = parent[parent[x]];
+        return x;
+    };
+    const auto join = [&](uint16_t a, uint16_t b) {
+        if (!(lower[a] + lower[b] > 1.0 + 1e-9)) return;
+        a = find(a);
+        b = find(b);
+        if (a < b) parent[b] = a;
+        else if (b < a) parent[a] = b;
+    };
+    for (uint16_t v = 0; v < 512; ++v) {
+        if ((v & 7u) < 7u) join(v, uint16_t(v + 1));
+        if (((v >> 3) & 7u) < 7u) join(v, uint16_t(v + 8));
+        if ((v >> 6) < 7u) join(v, uint16_t(v + 64));
+    }
+    uint16_t rootLabel[512];
+    std::fill(rootLabel, rootLabel + 512, uint16_t(0xffff));
+    uint16_t groups = 0;
+    for (uint16_t v = 0; v < 512; ++v) {
+        const uint16_t r = find(v);
+        if (rootLabel[r] == 0xffff) rootLabel[r] = groups++;
+        label[v] = rootLabel[r];
+    }
+    return groups;
+}
+
 /// Triangles near a region up to which the local exact tier is used there (each costs one
 /// solid angle per undecided voxel, ~40 ns; an estimate of w from the tree costs 10-25 µs near
 /// a rim).
@@ -85,12 +121,12 @@ void decideByNearSet(const Context& ctx, const Coord& origin, Scratch& s, const 
         return Vec3d(double(origin.x() + int(i >> 6)), double(origin.y() + int((i >> 3) & 7)), double(origin.z() + int(i & 7)));
     };
     const auto wNear = [&](const Vec3d& p) {
-        double sum = 0.0;
+        SolidAngleSum sum;
         for (uint32_t t : s.nearTris) {
             const double* c = FastWindingNumberAccess::triangle(fwn, t);
-            sum += triangleSolidAngle(Vec3d(c), Vec3d(c + 3), Vec3d(c + 6), p);
+            sum.add(c, c + 3, c + 6, p.asPointer());
         }
-        return sum / (4.0 * 3.14159265358979323846);
+        return sum.value() / (4.0 * 3.14159265358979323846);
     };
     const Vec3d c = indexOf(base) + Vec3d(0.5 * (side - 1.0));
     const Vec3d cw = c * h;
@@ -219,18 +255,15 @@ void localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const d
 /// P' and Q' moved inside their surface-free balls off the lattice (so that the segment misses
 /// edges and vertices; another direction is tried when a crossing is too close to call, and
 /// after three the representative is evaluated instead), ± g × the path length. Each voxel
-/// then takes its group's value ± g × its hops from the representative; a voxel whose interval
-/// still contains ±1/2 gets its own estimate.
+/// then takes its group's value ± g × its hops from the representative (tier 1); one whose
+/// interval still contains ±1/2 gets a first-order model about P over the leaf (tier 1b), then
+/// the blocks' models (tier 2), the local exact tier (tier 3) and, last, its own estimate.
 void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
 {
     using namespace winding_internal;
     const double h = ctx.voxelSize;
     double lower[512];
-    for (int i = 0; i < 512; ++i) {
-        lower[i] = s.vd[i] >= 0.0 ? s.vd[i] : ctx.limit;
-        s.member[i] = 1;
-        s.hops[i] = -1;
-    }
+    for (int i = 0; i < 512; ++i) lower[i] = s.vd[i] >= 0.0 ? s.vd[i] : ctx.limit;
     const auto adjacent = [&lower](uint32_t a, uint32_t b) { return lower[a] + lower[b] > 1.0 + 1e-9; };
     const auto indexOf = [&](uint32_t i) {
         return Vec3d(double(origin.x() + int(i >> 6)), double(origin.y() + int((i >> 3) & 7)), double(origin.z() + int(i & 7)));
@@ -273,34 +306,41 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
         }
         return false;
     };
+    // per voxel left undecided by tier 1: its group's carried value and the length of its path
+    // from P (for tier 1b)
+    double carried[512], pathLength[512];
+    uint32_t P = 0;     // the voxel of the leaf's one estimate (not local)
+    double w0 = 0.0;    // its estimate
     if (!local) {
         // groups, each with its representative (farthest voxel, ties to the lowest offset)
-        s.groupStart.clear();
-        s.groupRep.clear();
-        s.groupVoxels.clear();
-        for (uint32_t start = 0; start < 512; ++start) {
-            if (s.hops[start] >= 0) continue;
-            bfs(3, start, s.member, adjacent, s.hops, s.group);
-            uint32_t rep = s.group[0];
-            for (uint32_t i : s.group)
-                if (lower[i] > lower[rep] || (lower[i] == lower[rep] && i < rep)) rep = i;
-            s.groupStart.push_back(uint32_t(s.groupVoxels.size()));
-            s.groupRep.push_back(rep);
-            s.groupVoxels.insert(s.groupVoxels.end(), s.group.begin(), s.group.end());
+        // (leafGroups(); each group's voxels in increasing order, by a counting sort)
+        uint16_t label[512];
+        const size_t groups = leafGroups(lower, label);
+        s.groupStart.assign(groups + 1, 0);
+        s.groupRep.assign(groups, 0xffffffffu);
+        for (uint32_t i = 0; i < 512; ++i) {
+            ++s.groupStart[label[i] + 1u];
+            uint32_t& rep = s.groupRep[label[i]];
+            if (rep == 0xffffffffu || lower[i] > lower[rep]) rep = i;
         }
-        const size_t groups = s.groupRep.size();
-        s.groupStart.push_back(uint32_t(s.groupVoxels.size()));
+        for (size_t k = 0; k < groups; ++k) s.groupStart[k + 1] += s.groupStart[k];
+        s.groupVoxels.resize(512);
+        {
+            uint32_t fill[512];
+            std::copy(s.groupStart.begin(), s.groupStart.end() - 1, fill);
+            for (uint32_t i = 0; i < 512; ++i) s.groupVoxels[fill[label[i]]++] = i;
+        }
         s.windingGroups += groups;
         size_t main = 0;
         for (size_t k = 1; k < groups; ++k)
             if (lower[s.groupRep[k]] > lower[s.groupRep[main]]) main = k;
-        const uint32_t P = s.groupRep[main];
-        const double w0 = (*ctx.fwn)(indexOf(P) * h);
+        P = s.groupRep[main];
+        w0 = (*ctx.fwn)(indexOf(P) * h);
         ++s.windingEvaluations;
         s.undecided.clear();
         for (size_t k = 0; k < groups; ++k) {
             const uint32_t Q = s.groupRep[k];
-            double wq = w0, err0 = 0.0;
+            double wq = w0, err0 = 0.0, toQ = 0.0; // toQ: the path's length from P to Q
             bool own = k == main; // the value is Q's own estimate
             if (!(lower[Q] > kOnSurface)) {
                 // voxels on the surface (to rounding; a group of them alone): their value is 0
@@ -314,6 +354,7 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
                 if (crossing(P, Q, change, length)) {
                     wq = w0 + change;
                     err0 = g > 0.0 ? g * length : 0.0;
+                    toQ = length;
                 } else {
                     wq = evalVoxel(Q);
                     own = true;
@@ -336,12 +377,45 @@ void windingSigns(const Context& ctx, const Coord& origin, Scratch& s)
                 if (i == Q && own) v = insideByEstimate(wq) ? 1 : 0;
                 else if (!hops) v = whole >= 0 ? whole : decide(wq, err0);
                 else v = decide(wq, err0 + g * double(i == Q ? 0 : s.hopsRep[i]));
-                if (v < 0) s.undecided.push_back(i);
+                if (v < 0) {
+                    s.undecided.push_back(i);
+                    // (undecided: g > 0, so the hops were counted; a group whose value is its
+                    // own estimate carries nothing from P)
+                    carried[i] = wq;
+                    pathLength[i] = own && k != main ? -1.0 : toQ + double(i == Q ? 0 : s.hopsRep[i]);
+                }
                 else s.inside[i] = uint8_t(v);
             }
         }
     }
     if (s.undecided.empty()) return;
+    // tier 1b: a first-order model of w about P over the whole leaf, from P's estimate (no new
+    // one): the gradient B at P from the edge tree (error bound Be) and a bound H of the Hessian
+    // over the leaf's cells grown by the segment ends' moves. Along a path of length L from P
+    // that crosses the surface c times (net), w(v) = w(P) + c + B·(v − P) ± (½ H L² + Be |v − P|),
+    // because ∇w is continuous across the surface and varies by at most H per unit of path.
+    if (!local) {
+        const Vec3d lo = indexOf(0) - Vec3d(0.75), hi = indexOf(511) + Vec3d(0.75);
+        const double H = ctx.fwn->hessianBound(lo * h, hi * h) * h * h;
+        if (std::isfinite(H)) {
+            double be = 0.0;
+            const Vec3d B = ctx.fwn->gradient(indexOf(P) * h, be) * h;
+            be *= h;
+            s.group2.clear();
+            for (uint32_t i : s.undecided) {
+                int v = -1;
+                if (pathLength[i] >= 0.0) {
+                    const Vec3d d = indexOf(i) - indexOf(P);
+                    const double L = pathLength[i];
+                    v = decide(carried[i] + B.dot(d), 0.5 * H * L * L + be * d.length());
+                }
+                if (v >= 0) s.inside[i] = uint8_t(v);
+                else s.group2.push_back(i);
+            }
+            s.undecided.swap(s.group2);
+            if (s.undecided.empty()) return;
+        }
+    }
     const auto blockOf = [](uint32_t i, int shift) {
         // the block of side 1 << shift holding voxel i, as the offset of its first voxel
         const uint32_t m = (0xffu << shift) & 7u;
@@ -433,35 +507,8 @@ LeafResult deferLeaf(const Context& ctx, Scratch& s, LeafResult& res, bool wantC
         if (s.vd[i] >= 0.0 && double(f) > s.vd[i]) f = std::nextafter(f, 0.0f);
         dw->lower[i] = s.vd[i] >= 0.0 ? f : -1.0f;
     }
-    // The groups: connected components of 6-neighbours with no surface between them
-    // (lower[a] + lower[b] > 1), numbered in the order of their smallest voxel. A union-find over
-    // the +x, +y, +z neighbours (the smaller index stays the root) gives the same numbering as a
-    // breadth-first search from each unlabelled voxel in increasing order, at half the tests.
-    uint16_t parent[512];
-    for (uint16_t i = 0; i < 512; ++i) parent[i] = i;
-    const auto find = [&parent](uint16_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
-    };
-    const auto join = [&](uint16_t a, uint16_t b) {
-        if (!(lower[a] + lower[b] > 1.0 + 1e-9)) return;
-        a = find(a);
-        b = find(b);
-        if (a < b) parent[b] = a;
-        else if (b < a) parent[a] = b;
-    };
-    for (uint16_t v = 0; v < 512; ++v) {
-        if ((v & 7u) < 7u) join(v, uint16_t(v + 1));
-        if (((v >> 3) & 7u) < 7u) join(v, uint16_t(v + 8));
-        if ((v >> 6) < 7u) join(v, uint16_t(v + 64));
-    }
-    uint16_t label[512];
-    std::fill(label, label + 512, uint16_t(0xffff));
-    for (uint16_t v = 0; v < 512; ++v) {
-        const uint16_t r = find(v);
-        if (label[r] == 0xffff) label[r] = dw->groups++;
-        dw->group[v] = label[r];
-    }
+    // the groups (leafGroups())
+    dw->groups = leafGroups(lower, dw->group);
     s.windingGroups += dw->groups;
     for (openvdb::Index i = 0; i < 512; ++i) {
         dw->band[i] = 0;

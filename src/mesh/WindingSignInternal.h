@@ -44,6 +44,48 @@ struct FastWindingNumberAccess
 
 namespace levelforge::winding_internal {
 
+/// The sum of triangles' solid angles seen from one point with one atan2 for all of them:
+/// triangleSolidAngle() is 2 atan2(num, den) (Van Oosterom–Strackee), and Σ atan2(num_i, den_i)
+/// is the argument of the product Π (den_i + i num_i) plus 2π for every time the running
+/// product's argument passes ±π. A term with num = 0 (the point in the triangle's plane) adds 0,
+/// as triangleSolidAngle() does. The product is renormalised at every step (no overflow). The
+/// turns are read from the signs of the imaginary parts: a pass past ±π can only happen where
+/// the two terms of the new imaginary part have the same sign, so rounding cannot hide one, and
+/// the result equals the sum of atan2s up to rounding (~1e-15 per term), never by a multiple
+/// of 2π.
+struct SolidAngleSum
+{
+    double re = 1.0, im = 0.0;
+    int turns = 0;
+
+    /// Adds the solid angle of the triangle (a, b, c) seen from @p p (3 coordinates each).
+    inline void add(const double* a0, const double* b0, const double* c0, const double* p)
+    {
+        const double ax = a0[0] - p[0], ay = a0[1] - p[1], az = a0[2] - p[2];
+        const double bx = b0[0] - p[0], by = b0[1] - p[1], bz = b0[2] - p[2];
+        const double cx = c0[0] - p[0], cy = c0[1] - p[1], cz = c0[2] - p[2];
+        const double num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx);
+        if (num == 0.0) return;
+        const double la = std::sqrt(ax * ax + ay * ay + az * az), lb = std::sqrt(bx * bx + by * by + bz * bz),
+                     lc = std::sqrt(cx * cx + cy * cy + cz * cz);
+        const double den = la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la +
+                           (cx * ax + cy * ay + cz * az) * lb;
+        addTerm(num, den);
+    }
+    /// Adds atan2(num, den) (num != 0).
+    inline void addTerm(double num, double den)
+    {
+        const double r = re * den - im * num, i = re * num + im * den;
+        if (num > 0.0 && im >= 0.0 && i < 0.0) ++turns;
+        else if (num < 0.0 && im < 0.0 && (i > 0.0 || (i == 0.0 && r < 0.0))) --turns;
+        const double s = 1.0 / (std::abs(r) + std::abs(i));
+        re = r * s;
+        im = i * s + 0.0; // −0 → +0, so that atan2 reads an argument of π as +π
+    }
+    /// Σ of the solid angles added (steradians).
+    double value() const { return 2.0 * (std::atan2(im, re) + 2.0 * 3.14159265358979323846 * double(turns)); }
+};
+
 /// 1: |w| > 1/2 for every w within @p err of @p w (inside for sure); 0: |w| < 1/2 for all of
 /// them (outside for sure); -1: undecided.
 inline int verdict(double w, double err)

@@ -382,6 +382,7 @@ MeshToSdfGrids run(const TriangleMesh& inputMesh, const MeshToSdfOptions& o, Mes
             // the exact band (and every tile) by the winding number again
             FastWindingNumberOptions fo;
             fo.accuracy = o.windingAccuracy;
+            fo.leafSizeWithoutCurrent = 64; // (without boundary current: a few estimates only)
             int64_t leftOut = -1;
             const auto fwn = winding_internal::signingWindingNumber(mesh, fo, leftOut);
             WindingSignStats ws;

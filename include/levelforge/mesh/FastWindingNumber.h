@@ -74,6 +74,11 @@ struct FastWindingNumberOptions
     int order = 3;
     /// Triangles per leaf cluster (1 to 64).
     uint32_t leafSize = 8;
+    /// Triangles per leaf cluster when the mesh has no boundary current (closed and consistently
+    /// oriented, or every open edge cancelled), 0 to 64; 0: leafSize. There w is piecewise
+    /// constant and a conversion makes only a few estimates (one per region between surface
+    /// crossings), so a coarser tree, cheaper to build, costs nothing; meshToLevelSet() uses 64.
+    uint32_t leafSizeWithoutCurrent = 0;
 };
 
 /// @brief Signed solid angle of triangle (a, b, c) seen from p (Van Oosterom–Strackee):
@@ -105,7 +110,8 @@ public:
     /// @param[in] mesh     the surface, world units (a usable mesh: indices in range, finite
     ///                     coordinates); may be open, broken, non-manifold, a soup
     /// @param[in] options  accuracy (β), expansion order, leaf size
-    /// @throws InvalidArgumentError accuracy not > 1, order not in [1, 3], leafSize not in [1, 64]
+    /// @throws InvalidArgumentError accuracy not > 1, order not in [1, 3], leafSize not in [1, 64],
+    ///         leafSizeWithoutCurrent above 64
     explicit FastWindingNumber(const TriangleMesh& mesh, const FastWindingNumberOptions& options = {});
     ~FastWindingNumber();
     FastWindingNumber(FastWindingNumber&&) noexcept;
