@@ -30,11 +30,10 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 double triangleSolidAngle(const Vec3d& a0, const Vec3d& b0, const Vec3d& c0, const Vec3d& p)
 {
-    const Vec3d a = a0 - p, b = b0 - p, c = c0 - p;
-    const double num = a.dot(b.cross(c));
-    if (num == 0.0) return 0.0; // in the triangle's plane (the principal value on the triangle)
-    const double la = a.length(), lb = b.length(), lc = c.length();
-    const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+    double num, den;
+    // num = 0: in the triangle's plane (the principal value on the triangle)
+    if (!winding_internal::SolidAngleSum::terms(a0.asPointer(), b0.asPointer(), c0.asPointer(), p.asPointer(), num, den))
+        return 0.0;
     return 2.0 * std::atan2(num, den);
 }
 

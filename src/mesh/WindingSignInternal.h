@@ -61,16 +61,24 @@ struct SolidAngleSum
     /// Adds the solid angle of the triangle (a, b, c) seen from @p p (3 coordinates each).
     inline void add(const double* a0, const double* b0, const double* c0, const double* p)
     {
+        double num, den;
+        if (terms(a0, b0, c0, p, num, den)) addTerm(num, den);
+    }
+    /// Van Oosterom–Strackee's numerator a·(b×c) and denominator of the triangle (a, b, c) seen
+    /// from @p p (its solid angle is 2 atan2(num, den)); false when num = 0 (p in its plane).
+    static inline bool terms(const double* a0, const double* b0, const double* c0, const double* p, double& num,
+                             double& den)
+    {
         const double ax = a0[0] - p[0], ay = a0[1] - p[1], az = a0[2] - p[2];
         const double bx = b0[0] - p[0], by = b0[1] - p[1], bz = b0[2] - p[2];
         const double cx = c0[0] - p[0], cy = c0[1] - p[1], cz = c0[2] - p[2];
-        const double num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx);
-        if (num == 0.0) return;
+        num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx);
+        if (num == 0.0) return false;
         const double la = std::sqrt(ax * ax + ay * ay + az * az), lb = std::sqrt(bx * bx + by * by + bz * bz),
                      lc = std::sqrt(cx * cx + cy * cy + cz * cz);
-        const double den = la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la +
-                           (cx * ax + cy * ay + cz * az) * lb;
-        addTerm(num, den);
+        den = la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la +
+              (cx * ax + cy * ay + cz * az) * lb;
+        return true;
     }
     /// Adds atan2(num, den) (num != 0).
     inline void addTerm(double num, double den)
