@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace levelforge {
@@ -110,9 +111,10 @@ bool gatherNear(const Context& ctx, Scratch& s, const Vec3d& lo, const Vec3d& hi
 /// Decides the voxels s.undecided[first, last) of the cube of `side` voxels at offset `base`
 /// of the leaf at `origin` with the near set in the scratch (gatherNear()): a first-order model
 /// of w_F at the cube's centre plus the exact w_N of each voxel (see localExactTier()). The
-/// undecided ones are appended to s.group2.
+/// undecided ones are appended to s.group2. wNearOf[i] caches voxel i's w_N for the near set in
+/// the scratch (NaN: not computed yet), across the cube sizes that use the same near set.
 void decideByNearSet(const Context& ctx, const Coord& origin, Scratch& s, const double* lower, uint32_t base, int side,
-                     size_t first, size_t last, const Vec3d& skipLo, const Vec3d& skipHi)
+                     size_t first, size_t last, const Vec3d& skipLo, const Vec3d& skipHi, double* wNearOf)
 {
     using namespace winding_internal;
     const double h = ctx.voxelSize;
@@ -152,7 +154,8 @@ void decideByNearSet(const Context& ctx, const Coord& origin, Scratch& s, const 
         else if (model) {
             const Vec3d d = indexOf(i) - c;
             const double r = d.length();
-            v = decide(wNear(indexOf(i) * h) + wF + B.dot(d), 0.5 * H * r * r + be * r);
+            if (std::isnan(wNearOf[i])) wNearOf[i] = wNear(indexOf(i) * h);
+            v = decide(wNearOf[i] + wF + B.dot(d), 0.5 * H * r * r + be * r);
         }
         if (v >= 0) s.inside[i] = uint8_t(v);
         else s.group2.push_back(i);
@@ -187,10 +190,14 @@ void localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const d
         return block;
     };
     Vec3d skipLo, skipHi;
+    // each voxel's w_N for the near set in use (NaN: not yet), kept across the cube sizes
+    const double kNotYet = std::numeric_limits<double>::quiet_NaN();
+    double wNearOf[512];
     if (gatherNear(ctx, s, o, o + Vec3d(7.0), kLeafReach, skipLo, skipHi)) {
         // the whole leaf, then its 4×4×4 blocks, with the leaf's near set
         s.group2.clear();
-        decideByNearSet(ctx, origin, s, lower, 0, 8, 0, s.undecided.size(), skipLo, skipHi);
+        std::fill(wNearOf, wNearOf + 512, kNotYet);
+        decideByNearSet(ctx, origin, s, lower, 0, 8, 0, s.undecided.size(), skipLo, skipHi, wNearOf);
         s.undecided.swap(s.group2);
         if (s.undecided.empty()) return;
         for (int side = 4; side >= 2 && !s.undecided.empty(); side /= 2) {
@@ -200,7 +207,7 @@ void localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const d
                 const uint32_t base = block(s.undecided[first]);
                 size_t last = first;
                 while (last < s.undecided.size() && block(s.undecided[last]) == base) ++last;
-                decideByNearSet(ctx, origin, s, lower, base, side, first, last, skipLo, skipHi);
+                decideByNearSet(ctx, origin, s, lower, base, side, first, last, skipLo, skipHi, wNearOf);
                 first = last;
             }
             s.undecided.swap(s.group2);
@@ -218,7 +225,8 @@ void localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const d
         if (gatherNear(ctx, s, bo, bo + Vec3d(3.0), kBlockReach, skipLo, skipHi)) {
             // the block, then its 2×2×2 blocks with the same near set
             const size_t mark = s.group2.size();
-            decideByNearSet(ctx, origin, s, lower, base, 4, first, last, skipLo, skipHi);
+            for (size_t k = first; k < last; ++k) wNearOf[s.undecided[k]] = kNotYet; // this block's near set
+            decideByNearSet(ctx, origin, s, lower, base, 4, first, last, skipLo, skipHi, wNearOf);
             if (s.group2.size() > mark) {
                 s.rest.assign(s.group2.begin() + long(mark), s.group2.end());
                 s.group2.resize(mark);
@@ -230,7 +238,7 @@ void localExactTier(const Context& ctx, const Coord& origin, Scratch& s, const d
                 for (size_t f = 0; f < s.undecided.size();) {
                     size_t l = f;
                     while (l < s.undecided.size() && sub(s.undecided[l]) == sub(s.undecided[f])) ++l;
-                    decideByNearSet(ctx, origin, s, lower, sub(s.undecided[f]), 2, f, l, skipLo, skipHi);
+                    decideByNearSet(ctx, origin, s, lower, sub(s.undecided[f]), 2, f, l, skipLo, skipHi, wNearOf);
                     f = l;
                 }
                 s.undecided.swap(s.rest);
