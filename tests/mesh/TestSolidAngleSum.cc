@@ -69,15 +69,14 @@ TEST(SolidAngleSum, KeepsWholeTurnsOfClosedAndNestedSurfaces)
         for (const Vec3d& p : sphere.points) nested.points.push_back(p * (1.0 + 0.5 * k));
         for (const Vec3I& t : sphere.triangles) nested.triangles.push_back(Vec3I(t[0] + base, t[1] + base, t[2] + base));
     }
+    TriangleMesh flipped = sphere; // a flipped copy: −4π
+    for (Vec3I& t : flipped.triangles) std::swap(t[1], t[2]);
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> u(-0.5, 0.5);
     for (int i = 0; i < 200; ++i) {
         const Vec3d p(u(rng), u(rng), u(rng));
         EXPECT_NEAR(productSum(sphere, p), 4.0 * kPi, 1e-9);
         EXPECT_NEAR(productSum(nested, p), 12.0 * kPi, 1e-9);
-        // a flipped copy: −4π
-        TriangleMesh flipped = sphere;
-        for (Vec3I& t : flipped.triangles) std::swap(t[1], t[2]);
         EXPECT_NEAR(productSum(flipped, p), -4.0 * kPi, 1e-9);
         const Vec3d far = p + Vec3d(3.0, 0.0, 0.0);
         EXPECT_NEAR(productSum(sphere, far), 0.0, 1e-9);
