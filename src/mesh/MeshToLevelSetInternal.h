@@ -94,6 +94,9 @@ struct Scratch
     std::vector<std::pair<uint32_t, double>> stack; // traversal stack: node, its box distance²
     uint64_t evaluations = 0, boundTests = 0, nodeTests = 0, candidateVoxels = 0, activeVoxels = 0, leafPasses = 0;
     std::vector<std::pair<float, uint32_t>> blockList; // a 2×2×2 block's clusters: key, cluster index
+    std::vector<float> blockBox;                       // their boxes (6 SoA arrays, relative to the block centre)
+    size_t blockStride = 0;
+    std::vector<float> blockD2;                        // a voxel's squared distances to them
     struct WorkPoller* poller = nullptr; // polls the interrupter by work done (null: none)
     uint64_t reported = 0;               // evaluations already handed to the poller
     // Winding / unsigned: the leaf's voxels before their sign is known (distance in voxels, -1

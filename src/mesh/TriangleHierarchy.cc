@@ -366,6 +366,7 @@ TriangleHierarchy::TriangleHierarchy(const TriangleMesh& mesh, const std::vector
             }
             for (int k = 0; k < 3; ++k) { node.lo[k] = lo[k]; node.hi[k] = hi[k]; }
             c.origin = (lo + hi) * 0.5;
+            c.node = leafNode[ci];
             // the single-precision kernels see the whole triangles, whose corners may lie outside
             // the box of their pieces: the radius that bounds their coordinates
             double r2 = ((hi - lo) * 0.5).lengthSqr();

@@ -32,6 +32,8 @@
 #include <openvdb/util/NullInterrupter.h>
 
 #include <cstdint>
+#include <memory>
+#include <utility>
 #include <vector>
 
 namespace levelforge::mesh_internal {
@@ -54,7 +56,27 @@ struct alignas(16) TriangleCluster
     Vec3d origin;                  ///< centre of the cluster's box, cell space
     uint32_t ids[kClusterSize];    ///< triangle indices (kNoTriangle in unused lanes)
     uint32_t count;                ///< triangles in use
+    uint32_t node;                 ///< the hierarchy leaf holding it (its box)
 };
+
+/// An allocator that leaves trivially constructible elements uninitialised where a vector would
+/// value-initialise them: the clusters are written in parallel right after they are allocated,
+/// so their pages are first touched there, on every thread, instead of zeroed on one (196 MB
+/// for the 2.7 M marching-cubes triangles of a 181 × 217 × 181 volume).
+template <class T>
+struct UninitialisedAllocator : std::allocator<T>
+{
+    template <class U>
+    struct rebind { using other = UninitialisedAllocator<U>; };
+    UninitialisedAllocator() = default;
+    template <class U>
+    UninitialisedAllocator(const UninitialisedAllocator<U>&) noexcept {}
+    template <class U>
+    void construct(U* p) noexcept { ::new (static_cast<void*>(p)) U; }
+    template <class U, class... A>
+    void construct(U* p, A&&... a) { ::new (static_cast<void*>(p)) U(std::forward<A>(a)...); }
+};
+using ClusterVector = std::vector<TriangleCluster, UninitialisedAllocator<TriangleCluster>>;
 
 /// A node of the hierarchy: its box (cell space, double) and either two children or a cluster.
 struct HierarchyNode
@@ -112,7 +134,7 @@ public:
                       openvdb::util::NullInterrupter* interrupter = nullptr);
 
     const std::vector<HierarchyNode>& nodes() const { return mNodes; }
-    const std::vector<TriangleCluster>& clusters() const { return mClusters; }
+    const ClusterVector& clusters() const { return mClusters; }
     /// The largest distance from a cluster's origin to a corner of its box (cell units): bounds
     /// the magnitude of the coordinates the single-precision planes are evaluated at.
     double maxClusterRadius() const { return mMaxRadius; }
@@ -126,7 +148,7 @@ public:
 
 private:
     std::vector<HierarchyNode> mNodes;       // pre-order; node 0 is the root
-    std::vector<TriangleCluster> mClusters;  // in leaf order
+    ClusterVector mClusters;                 // in leaf order
     double mMaxRadius = 0.0;
     size_t mPieces = 0;
 };

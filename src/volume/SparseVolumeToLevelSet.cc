@@ -153,6 +153,130 @@ inline bool hasArea(const iso_surface_internal::Tri& t, double weldScale)
     return (t.b - t.a).cross(t.c - t.a).lengthSqr() > 0.0;
 }
 
+/// Welds the triangles of every cell leaf into one indexed mesh, with the result of inserting
+/// their corners one by one, leaf by leaf, into a map keyed by the position rounded to 2^-24
+/// voxel (weldKey): a crossing shared by neighbouring tetrahedra and cells is computed from
+/// either end, so copies agree to a few ulps, and the expansion's triangle refinement walks
+/// across the welded edges and vertex fans. Points come in the order of their first corner; a
+/// triangle whose corners weld together is dropped. In parallel: each leaf welds its own corners
+/// (cells of one leaf lie within its 8³ box of samples, so only a corner within two key units of
+/// one of the box's faces can be shared with another leaf); then one pass in leaf order gives
+/// the leaves' new points their numbers, looking up only those boundary corners in a map.
+void weldSoup(const openvdb::tree::LeafManager<openvdb::MaskTree>& cellLeaves,
+              std::vector<std::vector<iso_surface_internal::Tri>>& perLeaf, double weldScale, TriangleMesh& soup)
+{
+    using Key = std::array<int64_t, 3>;
+    const size_t nLeaves = perLeaf.size();
+    struct Local
+    {
+        std::vector<Key> keys;        // the leaf's distinct corners, in order of first use
+        std::vector<Vec3d> points;    // their positions (first use)
+        std::vector<uint8_t> shared;  // within two key units of a face of the leaf's box
+        std::vector<uint32_t> corner; // per triangle corner: index into keys
+        std::vector<uint32_t> id;     // global point index
+    };
+    std::vector<Local> local(nLeaves);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nLeaves, 8), [&](const tbb::blocked_range<size_t>& r) {
+        // (key, corner slot); within a leaf a key is packed into 128 bits: 3 × 42 bits relative to
+        // the leaf's origin (its corners lie within 8 · 2^24 key units of it)
+        std::vector<std::pair<unsigned __int128, uint32_t>> order;
+        std::vector<Key> keys;
+        for (size_t li = r.begin(); li != r.end(); ++li) {
+            const auto& tris = perLeaf[li];
+            if (tris.empty()) continue;
+            Local& L = local[li];
+            const size_t m = 3 * tris.size();
+            const openvdb::Coord o = cellLeaves.leaf(li).origin();
+            order.resize(m);
+            keys.resize(m);
+            for (size_t t = 0; t < tris.size(); ++t) {
+                keys[3 * t] = weldKey(tris[t].a, weldScale);
+                keys[3 * t + 1] = weldKey(tris[t].b, weldScale);
+                keys[3 * t + 2] = weldKey(tris[t].c, weldScale);
+            }
+            for (size_t i = 0; i < m; ++i) {
+                unsigned __int128 packed = 0;
+                for (int k = 0; k < 3; ++k) {
+                    const int64_t rel = keys[i][k] - (int64_t(o[k]) << 24) + (int64_t(1) << 40);
+                    if (rel < 0 || rel >= (int64_t(1) << 42)) throw ResourceLimitError("internal: an iso-surface corner outside its cell leaf");
+                    packed = (packed << 42) | (unsigned __int128)uint64_t(rel);
+                }
+                order[i] = {packed, uint32_t(i)};
+            }
+            std::sort(order.begin(), order.end()); // equal keys: first slot first
+            // distinct keys numbered by their first slot
+            std::vector<std::pair<uint32_t, uint32_t>> firsts; // (first slot, position in order)
+            for (size_t i = 0; i < m; ++i)
+                if (i == 0 || order[i].first != order[i - 1].first) firsts.emplace_back(order[i].second, uint32_t(i));
+            std::sort(firsts.begin(), firsts.end());
+            std::vector<uint32_t> rank(m);
+            for (uint32_t u = 0; u < firsts.size(); ++u) rank[firsts[u].second] = u;
+            L.corner.resize(m);
+            for (size_t i = 0, u = 0; i < m; ++i) {
+                if (i == 0 || order[i].first != order[i - 1].first) u = rank[i];
+                L.corner[order[i].second] = uint32_t(u);
+            }
+            L.keys.resize(firsts.size());
+            L.points.resize(firsts.size());
+            L.shared.resize(firsts.size());
+            for (uint32_t u = 0; u < firsts.size(); ++u) {
+                const uint32_t slot = firsts[u].first;
+                const auto& t = tris[slot / 3];
+                L.points[u] = slot % 3 == 0 ? t.a : (slot % 3 == 1 ? t.b : t.c);
+                L.keys[u] = keys[slot];
+                bool near = false;
+                for (int k = 0; k < 3; ++k) {
+                    const int64_t lo = int64_t(o[k]) << 24, hi = int64_t(o[k] + 8) << 24;
+                    near = near || std::llabs(L.keys[u][k] - lo) <= 2 || std::llabs(L.keys[u][k] - hi) <= 2;
+                }
+                L.shared[u] = near;
+            }
+        }
+    });
+    // numbers in leaf order; shared corners through the map
+    std::unordered_map<Key, uint32_t, KeyHash> weld;
+    uint32_t next = 0;
+    for (Local& L : local) {
+        L.id.resize(L.keys.size());
+        for (size_t u = 0; u < L.keys.size(); ++u) {
+            if (!L.shared[u]) { L.id[u] = next++; L.shared[u] = 1; continue; }
+            auto [it, added] = weld.emplace(L.keys[u], next);
+            if (added) ++next;
+            L.id[u] = it->second;
+            L.shared[u] = added; // from here on: whether this leaf's position is the point's
+        }
+    }
+    soup.points.resize(next);
+    std::vector<size_t> kept(nLeaves + 1, 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nLeaves, 8), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t li = r.begin(); li != r.end(); ++li) {
+            const Local& L = local[li];
+            for (size_t u = 0; u < L.keys.size(); ++u)
+                if (L.shared[u]) soup.points[L.id[u]] = L.points[u];
+            size_t n = 0;
+            for (size_t t = 0; t < perLeaf[li].size(); ++t) {
+                const uint32_t a = L.corner[3 * t], b = L.corner[3 * t + 1], c = L.corner[3 * t + 2];
+                n += (a != b && b != c && a != c) ? 1 : 0;
+            }
+            kept[li + 1] = n;
+        }
+    });
+    for (size_t li = 0; li < nLeaves; ++li) kept[li + 1] += kept[li];
+    soup.triangles.resize(kept[nLeaves]);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nLeaves, 8), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t li = r.begin(); li != r.end(); ++li) {
+            const Local& L = local[li];
+            size_t at = kept[li];
+            for (size_t t = 0; t < perLeaf[li].size(); ++t) {
+                const uint32_t a = L.corner[3 * t], b = L.corner[3 * t + 1], c = L.corner[3 * t + 2];
+                if (a == b || b == c || a == c) continue; // collapsed at a sample exactly on the iso-value
+                soup.triangles[at++] = Vec3I(L.id[a], L.id[b], L.id[c]);
+            }
+            std::vector<iso_surface_internal::Tri>().swap(perLeaf[li]);
+        }
+    });
+}
+
 /// The surface cells of step 1 for the cell search: per cell leaf, its triangles and a CSR over
 /// its 512 cells (empty for leaves without triangles).
 struct CellSurface
@@ -515,30 +639,11 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
         if (n > size_t(std::numeric_limits<uint32_t>::max() / 3))
             throw ResourceLimitError(gridLabel(field) + ": the iso-surface has more triangles than 32-bit "
                                      "indices allow");
-        // Weld the vertices (a crossing shared by neighbouring tetrahedra and cells is computed
-        // from either end, so copies agree to a few ulps: key = position rounded to 2^-24 voxel),
-        // so that the expansion's triangle refinement can walk across edges and vertex fans.
-        std::unordered_map<std::array<int64_t, 3>, uint32_t, KeyHash> weld;
-        weld.reserve(n * 2);
-        soup.points.reserve(n);
-        soup.triangles.reserve(n);
-        const double q = weldScale;
-        auto vertex = [&](const Vec3d& p) {
-            const std::array<int64_t, 3> key = weldKey(p, q);
-            auto [it, added] = weld.emplace(key, uint32_t(soup.points.size()));
-            if (added) soup.points.push_back(p);
-            return it->second;
-        };
         for (size_t li = 0; li < nLeaves; ++li) {
             stats.candidateCells += candidates[li];
             stats.surfaceCells += crossing[li];
-            for (const auto& t : perLeaf[li]) {
-                const uint32_t a = vertex(t.a), b = vertex(t.b), c = vertex(t.c);
-                if (a == b || b == c || a == c) continue; // collapsed at a sample exactly on the iso-value
-                soup.triangles.push_back(Vec3I(a, b, c));
-            }
-            std::vector<iso_surface_internal::Tri>().swap(perLeaf[li]);
         }
+        weldSoup(cellLeaves, perLeaf, weldScale, soup);
         if (soup.triangles.empty()) {
             std::ostringstream os;
             os << gridLabel(field) << ": the surface at iso-value " << iso << " has no area (every crossing lies "

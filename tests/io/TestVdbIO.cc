@@ -498,7 +498,7 @@ std::string expectRefused(const fs::path& path, const std::string& bytes, const 
     return msg;
 }
 
-fs::path fuzzDataDir() { return fs::path(__FILE__).parent_path().parent_path() / "data" / "fuzz"; }
+fs::path fuzzDataDir() { return fs::path(LEVELFORGE_SOURCE_DIR) / "tests" / "data" / "fuzz"; }
 
 } // namespace
 

@@ -102,6 +102,20 @@ std::vector<Case> cases()
 
 } // namespace
 
+// Under AddressSanitizer (the sanitizer layer of .ci/run) only band 3 without the winding rows:
+// the same leaf kernel and search run as in the other rows, and all of them took 310 s there
+// (51 s for these; -O1, 2 cores; 17 s for all in the Release build, which runs them all).
+#if defined(__SANITIZE_ADDRESS__)
+#define LF_FLAT_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define LF_FLAT_SANITIZED 1
+#endif
+#endif
+#ifndef LF_FLAT_SANITIZED
+#define LF_FLAT_SANITIZED 0
+#endif
+
 TEST(FlatLeafDistances, SameGridsAsTheSearchPerVoxelInEverySignMode)
 {
     for (const Case& c : cases())
@@ -111,6 +125,7 @@ TEST(FlatLeafDistances, SameGridsAsTheSearchPerVoxelInEverySignMode)
                 // (the leaf kernel hands the same closest points to the sign stage as on the
                 // closed shapes, which are signed by winding here too)
                 if (c.name == "triangle soup" && mode != SignMode::Unsigned) continue;
+                if (LF_FLAT_SANITIZED && (mode == SignMode::Winding || band != 3.0f)) continue;
                 MeshToLevelSetOptions opt;
                 opt.voxelCount = c.voxelCount;
                 opt.voxelSize = c.voxelSize;

@@ -115,7 +115,8 @@ TEST(MeshToLevelSet, SphereWithinPolygonalError)
 TEST(MeshToLevelSet, EveryBandModeIsExact)
 {
     const TriangleMesh knot = makeTorusKnot(2, 3, 1.0, 0.25, 128, 16);
-    const std::pair<float, float> widths[] = {{3.f, 3.f}, {1.f, 1.f}, {0.6f, 0.6f}, {5.f, 1.5f}, {1.5f, 6.f}, {2.5f, 2.5f}, {9.f, 9.f}};
+    const std::pair<float, float> widths[] = {{3.f, 3.f}, {1.f, 1.f}, {0.6f, 0.6f}, {5.f, 1.5f}, {1.5f, 6.f}, {2.5f, 2.5f}, {9.f, 9.f},
+                                                {20.f, 20.f}, {12.f, 4.f}};
     for (auto [ex, in] : widths) {
         MeshToLevelSetOptions opt;
         opt.voxelCount = 64;

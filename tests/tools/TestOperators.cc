@@ -367,7 +367,7 @@ TEST(Operators, CliReferenceIsCurrent)
 {
     // docs/cli.md holds the generated help of every operator verbatim (see its header for the
     // command that regenerates it).
-    const fs::path doc = fs::path(__FILE__).parent_path().parent_path().parent_path() / "docs" / "cli.md";
+    const fs::path doc = fs::path(LEVELFORGE_SOURCE_DIR) / "docs" / "cli.md";
     ASSERT_TRUE(fs::exists(doc)) << doc << " not found";
     std::ifstream in(doc);
     const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -10,6 +10,8 @@
 
 #include <openvdb/tools/LevelSetSphere.h>
 
+#include <tbb/global_control.h>
+
 #include <cmath>
 #include <iostream>
 #include <limits>
@@ -341,4 +343,32 @@ TEST(SparseVolumeToLevelSet, BadInputsGiveClearErrors)
     VolumeToLevelSetOptions tight = o;
     tight.maxVoxels = 10;
     EXPECT_THROW(sparseVolumeToLevelSet(*g, tight), ResourceLimitError);
+}
+
+TEST(SparseVolumeToLevelSet, WidenedBandIsIdenticalForAnyThreadCount)
+{
+    // the parallel weld of the iso-surface (points numbered in leaf order, shared corners looked
+    // up across cell leaves), the exact shell and the widening: the same bits on 1 and 2 threads
+    const ScalarVolume f = makeSphereField(Coord(72), Vec3d(35.3, 36.2, 34.9), 21.0);
+    const auto grid = sparseSphereField(f);
+    VolumeToLevelSetOptions o;
+    o.method = VolumeDistanceMethod::VCVDT8;
+    o.subvoxel = true;
+    o.exteriorWidth = o.interiorWidth = 10.0;
+    openvdb::FloatGrid::Ptr out[2];
+    SparseVolumeToLevelSetStats st[2];
+    for (int threads : {1, 2}) {
+        tbb::global_control gc(tbb::global_control::max_allowed_parallelism, threads);
+        out[threads - 1] = sparseVolumeToLevelSet(*grid, o, &st[threads - 1]);
+    }
+    EXPECT_TRUE(st[0].widened);
+    EXPECT_EQ(st[0].triangles, st[1].triangles);
+    ASSERT_EQ(out[0]->activeVoxelCount(), out[1]->activeVoxelCount());
+    auto acc = out[1]->getConstAccessor();
+    uint64_t differ = 0;
+    for (auto it = out[0]->cbeginValueOn(); it; ++it) {
+        float v;
+        if (!acc.probeValue(it.getCoord(), v) || v != *it) ++differ;
+    }
+    EXPECT_EQ(differ, 0u);
 }
