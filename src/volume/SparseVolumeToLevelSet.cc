@@ -159,19 +159,24 @@ inline bool hasArea(const iso_surface_internal::Tri& t, double weldScale)
 /// either end, so copies agree to a few ulps, and the expansion's triangle refinement walks
 /// across the welded edges and vertex fans. Points come in the order of their first corner; a
 /// triangle whose corners weld together is dropped. In parallel: each leaf welds its own corners
-/// (cells of one leaf lie within its 8³ box of samples, so only a corner within two key units of
-/// one of the box's faces can be shared with another leaf); then one pass in leaf order gives
+/// (cells of one leaf lie within its 8³ box of samples, so only a corner on one of the box's
+/// faces can be shared with another leaf); then one pass in leaf order gives
 /// the leaves' new points their numbers, looking up only those boundary corners in a map.
 void weldSoup(const openvdb::tree::LeafManager<openvdb::MaskTree>& cellLeaves,
               std::vector<std::vector<iso_surface_internal::Tri>>& perLeaf, double weldScale, TriangleMesh& soup)
 {
     using Key = std::array<int64_t, 3>;
     const size_t nLeaves = perLeaf.size();
+    constexpr int64_t kKeysPerVoxel = int64_t(1) << 24; // weldScale · h
+    // A corner on a face of the leaf's box has that face's coordinate in key units up to the
+    // rounding of p · weldScale (a few units at index 1e9); one marked shared without need only
+    // costs a map look-up.
+    constexpr int64_t kNearFace = 1024;
     struct Local
     {
         std::vector<Key> keys;        // the leaf's distinct corners, in order of first use
         std::vector<Vec3d> points;    // their positions (first use)
-        std::vector<uint8_t> shared;  // within two key units of a face of the leaf's box
+        std::vector<uint8_t> shared;  // on (within kNearFace of) a face of the leaf's box
         std::vector<uint32_t> corner; // per triangle corner: index into keys
         std::vector<uint32_t> id;     // global point index
     };
@@ -197,7 +202,7 @@ void weldSoup(const openvdb::tree::LeafManager<openvdb::MaskTree>& cellLeaves,
             for (size_t i = 0; i < m; ++i) {
                 unsigned __int128 packed = 0;
                 for (int k = 0; k < 3; ++k) {
-                    const int64_t rel = keys[i][k] - (int64_t(o[k]) << 24) + (int64_t(1) << 40);
+                    const int64_t rel = keys[i][k] - int64_t(o[k]) * kKeysPerVoxel + (int64_t(1) << 40);
                     if (rel < 0 || rel >= (int64_t(1) << 42)) throw ResourceLimitError("internal: an iso-surface corner outside its cell leaf");
                     packed = (packed << 42) | (unsigned __int128)uint64_t(rel);
                 }
@@ -226,8 +231,8 @@ void weldSoup(const openvdb::tree::LeafManager<openvdb::MaskTree>& cellLeaves,
                 L.keys[u] = keys[slot];
                 bool near = false;
                 for (int k = 0; k < 3; ++k) {
-                    const int64_t lo = int64_t(o[k]) << 24, hi = int64_t(o[k] + 8) << 24;
-                    near = near || std::llabs(L.keys[u][k] - lo) <= 2 || std::llabs(L.keys[u][k] - hi) <= 2;
+                    const int64_t lo = int64_t(o[k]) * kKeysPerVoxel, hi = (int64_t(o[k]) + 8) * kKeysPerVoxel;
+                    near = near || std::llabs(L.keys[u][k] - lo) <= kNearFace || std::llabs(L.keys[u][k] - hi) <= kNearFace;
                 }
                 L.shared[u] = near;
             }
