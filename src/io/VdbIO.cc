@@ -18,6 +18,7 @@
 #include <tbb/task_arena.h>
 
 #include <atomic>
+#include <cmath>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -206,6 +207,34 @@ void writeGridsAtomic(const std::string& path, const openvdb::GridPtrVec& grids,
 
 void checkOutputPath(const std::string& path) { vdbio_internal::checkLocation(path); }
 
+namespace {
+
+/// A grid's transform must be invertible with finite entries: OpenVDB reads a scale map with a
+/// zero (or non-finite) scale without complaint, and the first use of its affine form (index to
+/// world of a volume, a reference transform, resampling) then throws ArithmeticError from deep
+/// inside. Found by the volume fuzzer (tests/data/fuzz/volume/crash-89cd05f2…).
+void checkTransform(const std::string& path, const openvdb::GridBase& grid)
+{
+    std::string why;
+    try {
+        const openvdb::Mat4d m = grid.transform().baseMap()->getAffineMap()->getMat4();
+        for (int r = 0; r < 4 && why.empty(); ++r)
+            for (int c = 0; c < 4; ++c)
+                if (!std::isfinite(m[r][c])) { why = "a non-finite entry"; break; }
+        if (why.empty()) {
+            const double det = m.getMat3().det();
+            if (!(std::abs(det) > 0.0) || !std::isfinite(det)) why = "a zero determinant (a zero voxel size?)";
+        }
+    } catch (const std::exception& e) {
+        why = "it cannot be inverted (" + vdbio_internal::dependencyText(e) + ")";
+    }
+    if (!why.empty())
+        throw IoError("cannot read " + vdbio_internal::quoted(path) + ": grid '" + grid.getName() + "' has a singular transform: " +
+                      why);
+}
+
+} // namespace
+
 openvdb::GridPtrVecPtr readGrids(const std::string& path)
 {
     using namespace vdbio_internal;
@@ -245,7 +274,11 @@ openvdb::GridPtrVecPtr readGrids(const std::string& path)
         openvdb::GridPtrVecPtr grids = file.getGrids();
         file.close();
         if (!grids) throw IoError("no grids");
+        for (const auto& g : *grids)
+            if (g) checkTransform(path, *g);
         return grids;
+    } catch (const IoError&) {
+        throw;
     } catch (const std::bad_alloc& e) {
         throw memoryError(e);
     } catch (const std::length_error& e) {

@@ -166,6 +166,42 @@ TEST(VdbIO, ReadErrorsNameTheFile)
     expectIoError((dir / "cut.vdb").string(), "a truncated file");
 }
 
+TEST(VdbIO, ASingularTransformIsOneTypedErrorNamingTheGrid)
+{
+    // A scale map is stored as its scale and four values derived from it (voxel size, inverse
+    // scale, ...), read back as they are: a file whose scale is zero but whose voxel size is not
+    // reads without complaint, and the first use of the transform's affine form (index to world of
+    // a volume, a reference transform) throws ArithmeticError. The reader refuses it with an
+    // IoError naming the file and the grid (the volume fuzzer's finding,
+    // tests/data/fuzz/volume/crash-89cd…, replayed by Fuzz.Replay.volume).
+    const fs::path dir = scratchDir("vdbio_singular");
+    auto grid = makeGrid();
+    grid->setName("flat");
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(0.5));
+    const std::string good = (dir / "good.vdb").string();
+    levelforge::writeGridsAtomic(good, openvdb::GridPtrVec{grid});
+    EXPECT_NO_THROW(levelforge::readGrids(good));
+    // the scale (0.5, 0.5, 0.5) followed by the voxel size (0.5, 0.5, 0.5) and the inverse scale
+    // (2, 2, 2): set the scale to zero
+    std::string bytes = readText(good);
+    std::string pattern;
+    for (double v : {0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 2.0, 2.0, 2.0}) pattern.append(reinterpret_cast<const char*>(&v), 8);
+    const size_t at = bytes.find(pattern);
+    ASSERT_NE(at, std::string::npos) << "the scale map's values were not found in the file";
+    const double zero = 0.0;
+    for (int k = 0; k < 3; ++k) bytes.replace(at + 8 * k, 8, reinterpret_cast<const char*>(&zero), 8);
+    const std::string bad = (dir / "singular.vdb").string();
+    { std::ofstream(bad, std::ios::binary) << bytes; }
+    try {
+        levelforge::readGrids(bad);
+        ADD_FAILURE() << "expected IoError for a zero scale";
+    } catch (const levelforge::IoError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find(bad), std::string::npos) << m;
+        EXPECT_NE(m.find("grid 'flat' has a singular transform"), std::string::npos) << m;
+    }
+}
+
 TEST(VdbIO, ExternalToolsReadTheFile)
 {
     const fs::path dir = scratchDir("vdbio_external");
