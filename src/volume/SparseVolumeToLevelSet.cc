@@ -186,6 +186,8 @@ void weldSoup(const openvdb::tree::LeafManager<openvdb::MaskTree>& cellLeaves,
         // the leaf's origin (its corners lie within 8 · 2^24 key units of it)
         std::vector<std::pair<unsigned __int128, uint32_t>> order;
         std::vector<Key> keys;
+        std::vector<std::pair<uint32_t, uint32_t>> firsts; // (first slot, position in order)
+        std::vector<uint32_t> rank;
         for (size_t li = r.begin(); li != r.end(); ++li) {
             const auto& tris = perLeaf[li];
             if (tris.empty()) continue;
@@ -210,11 +212,11 @@ void weldSoup(const openvdb::tree::LeafManager<openvdb::MaskTree>& cellLeaves,
             }
             std::sort(order.begin(), order.end()); // equal keys: first slot first
             // distinct keys numbered by their first slot
-            std::vector<std::pair<uint32_t, uint32_t>> firsts; // (first slot, position in order)
+            firsts.clear();
             for (size_t i = 0; i < m; ++i)
                 if (i == 0 || order[i].first != order[i - 1].first) firsts.emplace_back(order[i].second, uint32_t(i));
             std::sort(firsts.begin(), firsts.end());
-            std::vector<uint32_t> rank(m);
+            rank.resize(m);
             for (uint32_t u = 0; u < firsts.size(); ++u) rank[firsts[u].second] = u;
             L.corner.resize(m);
             for (size_t i = 0, u = 0; i < m; ++i) {
