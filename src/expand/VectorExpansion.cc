@@ -4,6 +4,7 @@
 #include "expand/VectorExpansion.h"
 
 #include "detail/Timer.h"
+#include "detail/UninitialisedAllocator.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/PseudoNormals.h>
@@ -60,59 +61,102 @@ struct MeshWalk
 {
     std::vector<int32_t> edge;      ///< 3 per triangle: the triangle across each edge (-1: none)
     std::vector<uint32_t> fanBegin; ///< per vertex + 1: offsets into fan
-    std::vector<int32_t> fan;       ///< triangles around each vertex
-    std::vector<Vec3d> corners;     ///< 3 per triangle: its vertices, contiguous (cache-friendly)
+    std::vector<int32_t> fan;       ///< triangles around each vertex, in increasing order
+    /// 3 per triangle: its vertices, contiguous (cache-friendly); filled in parallel
+    std::vector<Vec3d, detail::UninitialisedAllocator<Vec3d>> corners;
     void build(const TriangleMesh& mesh);
 };
 
-/// For every triangle, the triangles across its three edges (-1: boundary). A non-manifold edge
-/// links its triangles in a ring, so every triangle of the edge stays reachable.
-std::vector<int32_t> edgeNeighbours(const TriangleMesh& mesh)
+/// The undirected key of edge e of triangle t (its end points, smaller first).
+inline uint64_t edgeKey(const Vec3I& tri, int e)
 {
-    const size_t nt = mesh.triangles.size();
-    std::vector<std::pair<uint64_t, uint32_t>> edges(3 * nt);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t t = r.begin(); t != r.end(); ++t) {
-            const Vec3I& tri = mesh.triangles[t];
-            for (int e = 0; e < 3; ++e) {
-                const uint64_t a = tri[e], b = tri[(e + 1) % 3];
-                edges[3 * t + size_t(e)] = {(std::min(a, b) << 32) | std::max(a, b), uint32_t(3 * t + size_t(e))};
-            }
-        }
-    });
-    tbb::parallel_sort(edges.begin(), edges.end());
-    std::vector<int32_t> nb(3 * nt, -1);
-    for (size_t i = 0; i < edges.size();) {
-        size_t j = i;
-        while (j < edges.size() && edges[j].first == edges[i].first) ++j;
-        if (j - i >= 2) {
-            for (size_t k = i; k < j; ++k) {
-                const size_t next = k + 1 < j ? k + 1 : i;
-                nb[edges[k].second] = int32_t(edges[next].second / 3);
-            }
-        }
-        i = j;
-    }
-    return nb;
+    const uint64_t a = tri[e], b = tri[(e + 1) % 3];
+    return (std::min(a, b) << 32) | std::max(a, b);
 }
 
-void MeshWalk::build(const TriangleMesh& mesh)
+} // namespace
+
+void meshAdjacency(const TriangleMesh& mesh, std::vector<uint32_t>& fanBegin, std::vector<int32_t>& fan,
+                   std::vector<int32_t>& edge)
 {
-    edge = edgeNeighbours(mesh);
-    corners.resize(3 * mesh.triangles.size());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangles.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t t = r.begin(); t != r.end(); ++t)
-            for (int k = 0; k < 3; ++k) corners[3 * t + size_t(k)] = mesh.points[mesh.triangles[t][k]];
-    });
+    const size_t nt = mesh.triangles.size();
     const size_t nv = mesh.points.size();
+    // the fans: a counting sort of the corners by vertex, triangles in increasing order
     fanBegin.assign(nv + 1, 0);
     for (const Vec3I& t : mesh.triangles)
         for (int k = 0; k < 3; ++k) ++fanBegin[t[k] + 1];
     for (size_t v = 0; v < nv; ++v) fanBegin[v + 1] += fanBegin[v];
     fan.resize(fanBegin[nv]);
-    std::vector<uint32_t> fill(fanBegin.begin(), fanBegin.end() - 1);
-    for (size_t t = 0; t < mesh.triangles.size(); ++t)
-        for (int k = 0; k < 3; ++k) fan[fill[mesh.triangles[t][k]]++] = int32_t(t);
+    {
+        std::vector<uint32_t> fill(fanBegin.begin(), fanBegin.end() - 1);
+        for (size_t t = 0; t < nt; ++t)
+            for (int k = 0; k < 3; ++k) fan[fill[mesh.triangles[t][k]]++] = int32_t(t);
+    }
+    edge.resize(3 * nt);
+    // For every triangle, the triangles across its three edges (-1: boundary), from the fan of
+    // the edge's end point with fewer triangles. A non-manifold edge links its triangles in a
+    // ring, in the order of their edge slots (3 t + e): each slot names the triangle of the next
+    // one. Edges whose both end points have large fans (hubs of degenerate exports) are linked
+    // afterwards by sorting their slots, so no fan is scanned once per triangle of a hub.
+    constexpr uint32_t kFanScan = 64;
+    constexpr int32_t kPending = -2;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t t = r.begin(); t != r.end(); ++t) {
+            const Vec3I& tri = mesh.triangles[t];
+            for (int e = 0; e < 3; ++e) {
+                const uint64_t key = edgeKey(tri, e);
+                const size_t slot = 3 * t + size_t(e);
+                size_t first = ~size_t(0), next = ~size_t(0), count = 0;
+                const uint32_t a = tri[e], b = tri[(e + 1) % 3];
+                const uint32_t na = fanBegin[a + 1] - fanBegin[a], nb = fanBegin[b + 1] - fanBegin[b];
+                if (std::min(na, nb) > kFanScan) {
+                    edge[slot] = kPending;
+                    continue;
+                }
+                const uint32_t v = na <= nb ? a : b;
+                int32_t prev = -1;
+                for (uint32_t q = fanBegin[v]; q < fanBegin[v + 1]; ++q) {
+                    const int32_t u = fan[q];
+                    if (u == prev) continue; // a triangle with this vertex twice is listed twice
+                    prev = u;
+                    const Vec3I& ut = mesh.triangles[size_t(u)];
+                    for (int f = 0; f < 3; ++f) {
+                        if (edgeKey(ut, f) != key) continue;
+                        const size_t s2 = 3 * size_t(u) + size_t(f);
+                        ++count;
+                        first = std::min(first, s2);
+                        if (s2 > slot) next = std::min(next, s2);
+                    }
+                }
+                edge[slot] = count >= 2 ? int32_t((next != ~size_t(0) ? next : first) / 3) : -1;
+            }
+        }
+    });
+    // the edges between two hubs: every slot of such an edge is pending (same end points)
+    std::vector<std::pair<uint64_t, uint32_t>> pending;
+    for (size_t slot = 0; slot < 3 * nt; ++slot)
+        if (edge[slot] == kPending) pending.emplace_back(edgeKey(mesh.triangles[slot / 3], int(slot % 3)), uint32_t(slot));
+    if (pending.empty()) return;
+    tbb::parallel_sort(pending.begin(), pending.end());
+    for (size_t i = 0; i < pending.size();) {
+        size_t j = i;
+        while (j < pending.size() && pending[j].first == pending[i].first) ++j;
+        for (size_t k = i; k < j; ++k)
+            edge[pending[k].second] = j - i >= 2 ? int32_t(pending[k + 1 < j ? k + 1 : i].second / 3) : -1;
+        i = j;
+    }
+}
+
+namespace {
+
+void MeshWalk::build(const TriangleMesh& mesh)
+{
+    meshAdjacency(mesh, fanBegin, fan, edge);
+    corners.resize(3 * mesh.triangles.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangles.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t t = r.begin(); t != r.end(); ++t)
+            for (int k = 0; k < 3; ++k) corners[3 * t + size_t(k)] = mesh.points[mesh.triangles[t][k]];
+    });
 }
 
 class SparseVcvdt

@@ -51,10 +51,25 @@
 #include <openvdb/util/NullInterrupter.h>
 
 #include <cstdint>
+#include <vector>
 
 namespace levelforge {
 
 namespace vector_expansion_internal {
+
+/// The mesh adjacency the triangle refinement walks over.
+/// @param[in]  mesh      the triangles (indices in range)
+/// @param[out] fanBegin  per vertex + 1: offsets into `fan`
+/// @param[out] fan       the triangles around each vertex, in increasing order (a triangle that
+///                       holds the vertex twice is listed twice)
+/// @param[out] edge      3 per triangle: the triangle across edge e (corners e, e + 1), -1 for a
+///                       boundary edge. The triangles of a non-manifold edge form a ring in the
+///                       order of their edge slots 3 t + e: each slot names the next slot's
+///                       triangle, the last the first's. Linear in the triangles plus the fans
+///                       scanned (at most 64 triangles per edge; edges between two larger fans
+///                       are sorted instead).
+void meshAdjacency(const TriangleMesh& mesh, std::vector<uint32_t>& fanBegin, std::vector<int32_t>& fan,
+                   std::vector<int32_t>& edge);
 
 /// What propagateClosestVectors() did.
 struct PropagationStats

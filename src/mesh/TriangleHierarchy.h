@@ -29,6 +29,8 @@
 
 #include <levelforge/core/TriangleMesh.h>
 
+#include "detail/UninitialisedAllocator.h"
+
 #include <openvdb/util/NullInterrupter.h>
 
 #include <cstdint>
@@ -59,23 +61,8 @@ struct alignas(16) TriangleCluster
     uint32_t node;                 ///< the hierarchy leaf holding it (its box)
 };
 
-/// An allocator that leaves trivially constructible elements uninitialised where a vector would
-/// value-initialise them: the clusters are written in parallel right after they are allocated,
-/// so their pages are first touched there, on every thread, instead of zeroed on one (196 MB
-/// for the 2.7 M marching-cubes triangles of a 181 × 217 × 181 volume).
-template <class T>
-struct UninitialisedAllocator : std::allocator<T>
-{
-    template <class U>
-    struct rebind { using other = UninitialisedAllocator<U>; };
-    UninitialisedAllocator() = default;
-    template <class U>
-    UninitialisedAllocator(const UninitialisedAllocator<U>&) noexcept {}
-    template <class U>
-    void construct(U* p) noexcept { ::new (static_cast<void*>(p)) U; }
-    template <class U, class... A>
-    void construct(U* p, A&&... a) { ::new (static_cast<void*>(p)) U(std::forward<A>(a)...); }
-};
+/// The clusters, written in parallel right after they are allocated (no zeroing on one thread).
+using detail::UninitialisedAllocator;
 using ClusterVector = std::vector<TriangleCluster, UninitialisedAllocator<TriangleCluster>>;
 
 /// A node of the hierarchy: its box (cell space, double) and either two children or a cluster.

@@ -293,6 +293,17 @@ struct CellSurface
     const std::vector<std::vector<uint32_t>>& start;
 };
 
+/// What the widening needs of the exact band besides the distances (cellSearchBand's optional
+/// output): per band voxel its closest-point offset (index space, voxel units) and the index of
+/// its closest triangle in the welded soup, whose triangles are those of the cell leaves in leaf
+/// order (firstId[li]: the index of cell leaf li's first triangle).
+struct BandClosest
+{
+    const std::vector<uint32_t>& firstId;
+    openvdb::Vec3fTree::Ptr points;
+    openvdb::Int32Tree::Ptr triangles;
+};
+
 /// The exact band of the interpolated surface by a search over its cells (no triangle hierarchy),
 /// for bands exact throughout and at most kExactUpTo voxels wide: every voxel within reach of a
 /// surface cell searches the cells around it as the dense sub-voxel shell does (SubvoxelShell.cc):
@@ -303,10 +314,12 @@ struct CellSurface
 /// signed by its own sample's side of the iso-value (as in step 2). Per output leaf the cells
 /// within reach are looked up once (27 cell leaves) into a window of pointer ranges; the search
 /// of a row starts from the previous voxel's triangle (per row: the same for any thread count).
+/// With `closest`, also the closest points and triangles of the band's voxels (for the widening).
 template<typename Inside>
 openvdb::FloatTree::Ptr cellSearchBand(const openvdb::FloatGrid& field, const CellSurface& surf, double h,
                                        double extW, double intW, const Inside& inside, double maxVoxels,
-                                       openvdb::util::NullInterrupter* interrupter, uint64_t& bandVoxels)
+                                       openvdb::util::NullInterrupter* interrupter, uint64_t& bandVoxels,
+                                       BandClosest* closest = nullptr)
 {
     using openvdb::Coord;
     using Tri = iso_surface_internal::Tri;
@@ -340,8 +353,12 @@ openvdb::FloatTree::Ptr cellSearchBand(const openvdb::FloatGrid& field, const Ce
     progress_internal::check(interrupter, 30);
 
     using Leaf = openvdb::FloatTree::LeafNodeType;
+    using CpLeaf = openvdb::Vec3fTree::LeafNodeType;
+    using TriLeaf = openvdb::Int32Tree::LeafNodeType;
     openvdb::tree::LeafManager<const openvdb::MaskTree> out(reach);
     std::vector<std::unique_ptr<Leaf>> leaves(out.leafCount());
+    std::vector<std::unique_ptr<CpLeaf>> cpLeaves(closest ? out.leafCount() : 0);
+    std::vector<std::unique_ptr<TriLeaf>> triLeaves(closest ? out.leafCount() : 0);
     const int W = 8 + 2 * (R + 1); // window of cells [origin - R - 1, origin + 8 + R + 1)
     const float bg = float(limit * h);
     const double lim2 = (limit * h) * (limit * h);
@@ -349,6 +366,7 @@ openvdb::FloatTree::Ptr cellSearchBand(const openvdb::FloatGrid& field, const Ce
     {
         const Tri* b;
         const Tri* e;
+        uint32_t id; // soup index of *b (with `closest`)
     };
     tbb::enumerable_thread_specific<std::vector<Range>> windows;
     std::atomic<bool> stop{false};
@@ -365,7 +383,7 @@ openvdb::FloatTree::Ptr cellSearchBand(const openvdb::FloatGrid& field, const Ce
         for (size_t li = r.begin(); li != r.end(); ++li) {
             const Coord o = out.leaf(li).origin();
             const Coord w0 = o.offsetBy(-(R + 1));
-            std::fill(win.begin(), win.end(), Range{nullptr, nullptr});
+            std::fill(win.begin(), win.end(), Range{nullptr, nullptr, 0});
             for (int dx = -8; dx <= 8; dx += 8)
                 for (int dy = -8; dy <= 8; dy += 8)
                     for (int dz = -8; dz <= 8; dz += 8) {
@@ -374,6 +392,7 @@ openvdb::FloatTree::Ptr cellSearchBand(const openvdb::FloatGrid& field, const Ce
                         if (cl < 0) continue;
                         const auto& st = surf.start[size_t(cl)];
                         const Tri* base = surf.tris[size_t(cl)].data();
+                        const uint32_t baseId = closest ? closest->firstId[size_t(cl)] : 0;
                         for (int x = 0; x < 8; ++x) {
                             const int wx = co.x() + x - w0.x();
                             if (wx < 0 || wx >= W) continue;
@@ -385,13 +404,17 @@ openvdb::FloatTree::Ptr cellSearchBand(const openvdb::FloatGrid& field, const Ce
                                     if (wz < 0 || wz >= W) continue;
                                     const size_t n = size_t((x << 6) | (y << 3) | z);
                                     if (st[n + 1] > st[n])
-                                        win[(size_t(wx) * W + size_t(wy)) * W + size_t(wz)] = Range{base + st[n], base + st[n + 1]};
+                                        win[(size_t(wx) * W + size_t(wy)) * W + size_t(wz)] =
+                                            Range{base + st[n], base + st[n + 1], baseId + st[n]};
                                 }
                             }
                         }
                     }
             std::unique_ptr<Leaf> dst;
+            std::unique_ptr<CpLeaf> cpDst;
+            std::unique_ptr<TriLeaf> triDst;
             const Tri* seed = nullptr;
+            uint32_t seedId = 0;
             openvdb::Index row = ~openvdb::Index(0);
             for (auto v = out.leaf(li).cbeginValueOn(); v; ++v) {
                 const Coord c = v.getCoord();
@@ -403,12 +426,16 @@ openvdb::FloatTree::Ptr cellSearchBand(const openvdb::FloatGrid& field, const Ce
                 const int lc[3] = {c.x() - w0.x(), c.y() - w0.y(), c.z() - w0.z()}; // the sample, window cells
                 double d2 = lim2;
                 const Tri* best = nullptr;
+                uint32_t bestId = 0;
+                Vec3d bestQ(0.0);
                 if (seed) {
-                    Vec3d q;
+                    Vec3d q(0.0);
                     const double e2 = iso_surface_internal::triDistance2(p, *seed, q);
                     if (e2 < d2) {
                         d2 = e2;
                         best = seed;
+                        bestId = seedId;
+                        bestQ = q;
                     }
                 }
                 auto gap2 = [&](int a, int wc) { // squared world gap between the sample and window cell wc
@@ -420,11 +447,13 @@ openvdb::FloatTree::Ptr cellSearchBand(const openvdb::FloatGrid& field, const Ce
                     const Range& rg = win[(size_t(wx) * W + size_t(wy)) * W + size_t(wz)];
                     for (const Tri* t = rg.b; t != rg.e; ++t) {
                         if (t == seed || iso_surface_internal::triBoxDistance2(p, *t) >= d2) continue;
-                        Vec3d q;
+                        Vec3d q(0.0);
                         const double e2 = iso_surface_internal::triDistance2(p, *t, q);
                         if (e2 < d2) {
                             d2 = e2;
                             best = t;
+                            bestId = rg.id + uint32_t(t - rg.b);
+                            bestQ = q;
                         }
                     }
                 };
@@ -451,6 +480,7 @@ openvdb::FloatTree::Ptr cellSearchBand(const openvdb::FloatGrid& field, const Ce
                     }
                 }
                 seed = best;
+                seedId = bestId;
                 if (!best) continue; // nothing within the band: the flood fill signs it
                 const bool in = inside(facc.getValue(c));
                 // membership on the stored (float) value, as keptVoxels() decides it in step 2
@@ -458,18 +488,108 @@ openvdb::FloatTree::Ptr cellSearchBand(const openvdb::FloatGrid& field, const Ce
                 if (!(double(fd) / h < (in ? intW : extW))) continue;
                 if (!dst) dst = std::make_unique<Leaf>(o, bg, false);
                 dst->setValueOn(v.pos(), in ? -fd : fd);
+                if (closest) {
+                    if (!cpDst) {
+                        cpDst = std::make_unique<CpLeaf>(o, openvdb::Vec3f(0.0f), false);
+                        triDst = std::make_unique<TriLeaf>(o, -1, false);
+                    }
+                    cpDst->setValueOn(v.pos(), openvdb::Vec3f((bestQ - p) / h));
+                    triDst->setValueOn(v.pos(), int32_t(bestId));
+                }
             }
             leaves[li] = std::move(dst);
+            if (closest) {
+                cpLeaves[li] = std::move(cpDst);
+                triLeaves[li] = std::move(triDst);
+            }
         }
     });
     if (stop) throw InterruptedError("interrupted while computing the exact band");
+    // addLeaf takes a leaf only once its parents exist: until it returns the leaf is still ours
+    auto assemble = [](auto& tree, auto& ls) {
+        for (auto& l : ls) {
+            if (!l) continue;
+            tree->addLeaf(l.get());
+            (void)l.release();
+        }
+    };
     auto tree = std::make_shared<openvdb::FloatTree>(bg);
-    for (auto& l : leaves) {
-        if (!l) continue;
-        tree->addLeaf(l.get()); // owned here until the tree has it
-        (void)l.release();
+    assemble(tree, leaves);
+    if (closest) {
+        closest->points = std::make_shared<openvdb::Vec3fTree>(openvdb::Vec3f(0.0f));
+        assemble(closest->points, cpLeaves);
+        closest->triangles = std::make_shared<openvdb::Int32Tree>(-1);
+        assemble(closest->triangles, triLeaves);
     }
     return tree;
+}
+/// The last step of every road: the input's transform, the counts, the interrupter's end.
+openvdb::FloatGrid::Ptr finishGrid(const openvdb::FloatGrid& field, const VolumeToLevelSetOptions& o,
+                                   openvdb::FloatGrid::Ptr grid, SparseVolumeToLevelSetStats& stats,
+                                   SparseVolumeToLevelSetStats* statsOut)
+{
+    grid->setTransform(field.transform().copy());
+    stats.activeVoxels = grid->activeVoxelCount();
+    if (o.interrupter) {
+        o.interrupter->wasInterrupted(100);
+        o.interrupter->end();
+    }
+    if (statsOut) *statsOut = stats;
+    return grid;
+}
+
+/// Step 3: widens the exact band `grid` (index space × h, no translation; exactly -exactInt <
+/// φ < exactExt voxels) by the sparse VCVDT from its closest points and triangles (of `soup`), or
+/// fills the interior, then trims to -interior < φ < exterior as the dense path does.
+openvdb::FloatGrid::Ptr widenBand(const openvdb::FloatGrid& field, const VolumeToLevelSetOptions& o,
+                                  openvdb::FloatGrid::Ptr grid, const TriangleMesh& soup,
+                                  const openvdb::Vec3fTree& closestPoints, const openvdb::Int32Tree& closestTriangles,
+                                  double exactExt, double exactInt, SparseVolumeToLevelSetStats& stats,
+                                  SparseVolumeToLevelSetStats* statsOut)
+{
+    using openvdb::Coord;
+    const double h = uniformVoxelSize(field);
+    const double exteriorWidth = o.widthInVoxels(o.exteriorWidth, h);
+    const double interiorWidth = o.widthInVoxels(o.interiorWidth, h);
+    auto* interrupter = o.interrupter;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const auto t0 = Clock::now();
+    // (fill interior: the inside beyond the exact band comes from the sparse VCVDT with either method)
+    ExpandLevelSetOptions eo;
+    eo.method = ExpansionMethod::Vector;
+    eo.closestPoints = &closestPoints;
+    eo.closestTriangles = &closestTriangles;
+    eo.mesh = &soup;
+    eo.exteriorWidth = exteriorWidth;
+    eo.interiorWidth = o.fillInterior ? exactInt : interiorWidth;
+    eo.fillInterior = o.fillInterior;
+    eo.inputExteriorWidth = exactExt;
+    eo.inputInteriorWidth = exactInt;
+    eo.maxVoxels = o.maxVoxels;
+    eo.interrupter = interrupter; // reports its own stage
+    grid = expandLevelSet(*grid, eo);
+    if (interrupter) interrupter->start("volume to level set (sparse): trim");
+    // expandLevelSet keeps a coverage margin beyond the widths; the volume path's band is
+    // -interior < φ < exterior exactly, as on the dense path.
+    const double bgW = o.fillInterior ? std::max(double(grid->background()), exteriorWidth * h)
+                                      : std::max(exteriorWidth, interiorWidth) * h;
+    const float ext = float(exteriorWidth * h), in = float(interiorWidth * h);
+    auto trimmed = keptVoxels(grid->tree(), float(bgW), [&](const Coord&, float x) {
+        return (x < ext && (o.fillInterior || x > -in)) ? x : nan;
+    });
+    if (o.fillInterior) {
+        // Interior tiles the expansion made active stay active (every inside voxel is kept).
+        for (auto it = grid->tree().cbeginValueOn(); it; ++it)
+            if (it.isTileValue() && *it < 0.0f) {
+                openvdb::CoordBBox b;
+                it.getBoundingBox(b);
+                trimmed->fill(b, *it, true);
+            }
+    }
+    grid = levelSetGrid(trimmed, grid->transform().copy(), o.gridName);
+    stats.secondsWiden = secondsSince(t0);
+    stats.widened = true;
+    return finishGrid(field, o, grid, stats, statsOut);
 }
 } // namespace
 
@@ -516,7 +636,11 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     const double exact = (widen && wantMax > kExactUpTo) ? 1.5 : wantMax;
     const double exactExt = std::min(exact, exteriorWidth);
     const double exactInt = o.fillInterior ? exact : std::min(exact, interiorWidth);
-    const bool cellSearch = !o.fillInterior && exact == wantMax && exact <= kExactUpTo;
+    // Step 3 widens (or fills) beyond the exact band.
+    const bool widens = o.fillInterior || (widen && (exteriorWidth > exactExt || interiorWidth > exactInt));
+    // An exact band of at most kExactUpTo voxels comes from the search over the surface cells
+    // (with the closest points and triangles when step 3 follows); wider ones from the hierarchy.
+    const bool cellSearch = exact <= kExactUpTo;
     const double weldScale = double(1 << 24) / h; // vertices closer than 2^-24 voxel are one
 
     // ---- 1. candidate cells: leaves, faces of tiles on the other side than the background
@@ -620,17 +744,43 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
         stats.exactBand = exact;
         stats.cellSearch = true;
         uint64_t bandVoxels = 0;
-        auto tree = cellSearchBand(field, CellSurface{cellLeaves, perLeaf, cellStart}, h, exactExt, exactInt, inside,
-                                   o.maxVoxels, interrupter, bandVoxels);
-        openvdb::FloatGrid::Ptr grid = levelSetGrid(tree, field.transform().copy(), o.gridName);
-        stats.exactVoxels = stats.activeVoxels = grid->activeVoxelCount();
-        stats.secondsExact = secondsSince(t0);
-        if (interrupter) {
-            interrupter->wasInterrupted(100);
-            interrupter->end();
+        if (!widens) {
+            auto tree = cellSearchBand(field, CellSurface{cellLeaves, perLeaf, cellStart}, h, exactExt, exactInt,
+                                       inside, o.maxVoxels, interrupter, bandVoxels);
+            openvdb::FloatGrid::Ptr grid = levelSetGrid(tree, field.transform().copy(), o.gridName);
+            stats.exactVoxels = stats.activeVoxels = grid->activeVoxelCount();
+            stats.secondsExact = secondsSince(t0);
+            if (interrupter) {
+                interrupter->wasInterrupted(100);
+                interrupter->end();
+            }
+            if (statsOut) *statsOut = stats;
+            return grid;
         }
-        if (statsOut) *statsOut = stats;
-        return grid;
+        // Exact band with its closest points and triangles, numbered as in the welded soup
+        // (every triangle kept here has three distinct weld keys, so the weld keeps each one).
+        if (n > size_t(std::numeric_limits<int32_t>::max()))
+            throw ResourceLimitError(gridLabel(field) + ": the iso-surface has more triangles than 32-bit "
+                                     "indices allow");
+        std::vector<uint32_t> firstId(nLeaves, 0);
+        for (size_t li = 1; li < nLeaves; ++li) firstId[li] = firstId[li - 1] + uint32_t(perLeaf[li - 1].size());
+        BandClosest bc{firstId, nullptr, nullptr};
+        // the grid in index space × h without the input's translation, like the soup (see step 2)
+        openvdb::FloatGrid::Ptr grid =
+            levelSetGrid(cellSearchBand(field, CellSurface{cellLeaves, perLeaf, cellStart}, h, exactExt, exactInt,
+                                        inside, o.maxVoxels, interrupter, bandVoxels, &bc),
+                         openvdb::math::Transform::createLinearTransform(h), o.gridName);
+        stats.exactVoxels = grid->activeVoxelCount();
+        stats.secondsExact = secondsSince(t0);
+        progress_internal::check(interrupter, 70);
+        t0 = Clock::now();
+        TriangleMesh soup;
+        weldSoup(cellLeaves, perLeaf, weldScale, soup);
+        if (soup.triangles.size() != n)
+            throw ResourceLimitError("internal: the weld dropped a triangle of the cell search");
+        soup.source = gridLabel(field) + " iso-surface";
+        stats.secondsSurface += secondsSince(t0);
+        return widenBand(field, o, grid, soup, *bc.points, *bc.triangles, exactExt, exactInt, stats, statsOut);
     }
 
     TriangleMesh soup;
@@ -695,52 +845,10 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     progress_internal::check(interrupter, 70);
 
     // ---- 3. widen by the sparse VCVDT (closest points and triangles of the exact band)
-    // (fill interior: the inside beyond the exact band comes from the sparse VCVDT with either method)
-    if (o.fillInterior || (widen && (exteriorWidth > exactExt || interiorWidth > exactInt))) {
-        t0 = Clock::now();
-        ExpandLevelSetOptions eo;
-        eo.method = ExpansionMethod::Vector;
-        eo.closestPoints = &band.closestPoints->tree();
-        eo.closestTriangles = &band.closestTriangles->tree();
-        eo.mesh = &soup;
-        eo.exteriorWidth = exteriorWidth;
-        eo.interiorWidth = o.fillInterior ? exact : interiorWidth;
-        eo.fillInterior = o.fillInterior;
-        eo.inputExteriorWidth = exactExt;
-        eo.inputInteriorWidth = exactInt;
-        eo.maxVoxels = o.maxVoxels;
-        eo.interrupter = interrupter; // reports its own stage
-        grid = expandLevelSet(*grid, eo);
-        if (interrupter) interrupter->start("volume to level set (sparse): trim");
-        // expandLevelSet keeps a coverage margin beyond the widths; the volume path's band is
-        // -interior < φ < exterior exactly, as on the dense path.
-        const double bgW = o.fillInterior ? std::max(double(grid->background()), exteriorWidth * h)
-                                          : std::max(exteriorWidth, interiorWidth) * h;
-        const float ext = float(exteriorWidth * h), in = float(interiorWidth * h);
-        auto trimmed = keptVoxels(grid->tree(), float(bgW), [&](const Coord&, float x) {
-            return (x < ext && (o.fillInterior || x > -in)) ? x : nan;
-        });
-        if (o.fillInterior) {
-            // Interior tiles the expansion made active stay active (every inside voxel is kept).
-            for (auto it = grid->tree().cbeginValueOn(); it; ++it)
-                if (it.isTileValue() && *it < 0.0f) {
-                    openvdb::CoordBBox b;
-                    it.getBoundingBox(b);
-                    trimmed->fill(b, *it, true);
-                }
-        }
-        grid = levelSetGrid(trimmed, grid->transform().copy(), o.gridName);
-        stats.secondsWiden = secondsSince(t0);
-        stats.widened = true;
-    }
-    grid->setTransform(field.transform().copy());
-    stats.activeVoxels = grid->activeVoxelCount();
-    if (interrupter) {
-        interrupter->wasInterrupted(100);
-        interrupter->end();
-    }
-    if (statsOut) *statsOut = stats;
-    return grid;
+    if (widens)
+        return widenBand(field, o, grid, soup, band.closestPoints->tree(), band.closestTriangles->tree(), exactExt,
+                         exactInt, stats, statsOut);
+    return finishGrid(field, o, grid, stats, statsOut);
 }
 
 } // namespace levelforge

@@ -14,6 +14,7 @@
 
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 
@@ -188,3 +189,53 @@ TEST(VectorExpansion, IdenticalForAnyThreadCount)
     for (auto it = a->cbeginValueOn(); it; ++it) ASSERT_EQ(acc.getValue(it.getCoord()), *it);
 }
 
+
+TEST(VectorExpansion, MeshAdjacencyMatchesSortedEdgeSlotsWithHubsAndNonManifoldEdges)
+{
+    // The walk's adjacency against its definition: all edge slots sorted by (undirected edge,
+    // slot); each slot of an edge with two or more slots names the next slot's triangle (the
+    // last the first's), a lone slot -1. The mesh mixes a closed sphere, a fan of 300 triangles
+    // around one vertex (fan scans), a non-manifold edge between two hubs shared by 200
+    // triangles (the sorted fallback), triangles that name a vertex twice and a duplicate.
+    TriangleMesh mesh = makeIcosphere(Vec3d(0.0), 1.0, 2);
+    const uint32_t base = uint32_t(mesh.points.size());
+    for (int i = 0; i < 402; ++i) mesh.points.emplace_back(3.0 + 0.01 * i, 0.1 * (i % 7), 0.2);
+    const uint32_t hubA = base, hubB = base + 1;
+    for (uint32_t i = 0; i < 300; ++i) mesh.triangles.emplace_back(hubA, base + 2 + i, base + 2 + (i + 1) % 300);
+    for (uint32_t i = 0; i < 200; ++i) mesh.triangles.emplace_back(hubA, hubB, base + 2 + (i * 7) % 400);
+    mesh.triangles.emplace_back(hubA, hubA, hubB);
+    mesh.triangles.emplace_back(base + 5, base + 6, base + 5);
+    mesh.triangles.push_back(mesh.triangles[3]);
+    std::vector<uint32_t> fanBegin;
+    std::vector<int32_t> fan, edge;
+    vector_expansion_internal::meshAdjacency(mesh, fanBegin, fan, edge);
+    const size_t nt = mesh.triangles.size();
+    ASSERT_EQ(edge.size(), 3 * nt);
+    std::vector<std::pair<uint64_t, uint32_t>> slots;
+    for (size_t t = 0; t < nt; ++t)
+        for (int e = 0; e < 3; ++e) {
+            const uint64_t a = mesh.triangles[t][e], b = mesh.triangles[t][(e + 1) % 3];
+            slots.emplace_back((std::min(a, b) << 32) | std::max(a, b), uint32_t(3 * t + size_t(e)));
+        }
+    std::sort(slots.begin(), slots.end());
+    size_t linked = 0, ringsOfMany = 0;
+    for (size_t i = 0; i < slots.size();) {
+        size_t j = i;
+        while (j < slots.size() && slots[j].first == slots[i].first) ++j;
+        for (size_t k = i; k < j; ++k) {
+            const int32_t want = j - i >= 2 ? int32_t(slots[k + 1 < j ? k + 1 : i].second / 3) : -1;
+            EXPECT_EQ(edge[slots[k].second], want) << "slot " << slots[k].second;
+            linked += want >= 0 ? 1 : 0;
+        }
+        ringsOfMany += j - i > 2 ? 1 : 0;
+        i = j;
+    }
+    EXPECT_GT(linked, 3 * 320u);
+    EXPECT_GE(ringsOfMany, 2u); // the hub edge and the duplicated triangle's edges
+    // the fans: every corner listed once, triangles in increasing order
+    ASSERT_EQ(fanBegin.size(), mesh.points.size() + 1);
+    EXPECT_EQ(fan.size(), 3 * nt);
+    for (size_t v = 0; v < mesh.points.size(); ++v)
+        for (uint32_t q = fanBegin[v] + 1; q < fanBegin[v + 1]; ++q) EXPECT_LE(fan[q - 1], fan[q]);
+    EXPECT_EQ(fanBegin[hubA + 1] - fanBegin[hubA], 300u + 200u + 2u);
+}

@@ -173,6 +173,8 @@ TEST(SparseVolumeToLevelSet, Vcvdt8WidensTheExactBandAccurately)
     SparseVolumeToLevelSetStats st;
     const auto ls = sparseVolumeToLevelSet(*grid, o, &st);
     EXPECT_EQ(st.exactBand, 1.5);
+    EXPECT_TRUE(st.cellSearch); // the 1.5-voxel band with its closest points comes from the cells
+    EXPECT_TRUE(st.widened);
     EXPECT_GT(st.activeVoxels, 3 * st.exactVoxels);
     // The band is -12 < φ < 12 on the VCVDT values, which may exceed the exact distance by their
     // error: membership is checked 0.05 voxel inside / outside the edges.

@@ -17,12 +17,13 @@
 ///     band wider than 3 voxels; up to 3 voxels the whole band is exact, which costs no more than
 ///     the 1.5-voxel shell and the widening; the dense
 ///     path's shell R is the 26-neighbourhood of the surface voxels, the same reach) with the
-///     exact closest points and triangles (meshToLevelSetWithClosestPoints, Chang et al. 2008,
-///     on the sparse triangle lists), each voxel signed by its own sample's side of the iso-value
-///     (the voxel centres are the samples, so this is the inside flag of Eq. 2 — no pseudonormal
-///     is trusted on the unoriented soup), re-flood-filled. A band exact throughout and at most
-///     3 voxels wide (no fillInterior) is instead searched over the surface cells around each
-///     voxel, as the dense shell does (no soup, no hierarchy; the same values, bit for bit);
+///     exact closest points and triangles, each voxel signed by its own sample's side of the
+///     iso-value (the voxel centres are the samples, so this is the inside flag of Eq. 2 — no
+///     pseudonormal is trusted on the unoriented soup), re-flood-filled. An exact band of at most
+///     3 voxels is searched over the surface cells around each voxel, as the dense shell does (no
+///     triangle hierarchy; the same values, bit for bit), recording the closest points and the
+///     welded soup's triangle indices when step 3 follows; wider exact bands (Exact beyond 3
+///     voxels) use meshToLevelSetWithClosestPoints (Chang et al. 2008) on the welded soup;
 ///  3. widening: to the requested widths with the sparse 8-pass VCVDT over the dilated VDB
 ///     topology (docs/expansion.md, through expandLevelSet with ExpansionMethod::Vector and the
 ///     exact closest points and triangles of step 2). With VolumeDistanceMethod::Exact the exact
@@ -58,7 +59,8 @@ struct SparseVolumeToLevelSetStats
     double exactBand = 0.0;       ///< half-width of the exact band, voxels
     bool widened = false;         ///< step 3 ran (VCVDT8 with a width beyond the exact band)
     bool cellSearch = false;      ///< the exact band came from the search over the surface cells
-                                  ///< (bands exact throughout, at most 3 voxels; `exact` unused)
+                                  ///< (exact bands of at most 3 voxels, with the closest points
+                                  ///< and triangles when step 3 widens it; `exact` unused)
     MeshToLevelSetStats exact;    ///< the exact band's converter (stage times, evaluations)
     double secondsSurface = 0, secondsExact = 0, secondsWiden = 0;
 };
