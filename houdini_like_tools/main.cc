@@ -9,6 +9,16 @@
 #include <string>
 #include <vector>
 
+#ifdef LEVELFORGE_WITH_JEMALLOC
+// jemalloc's options, read at its first allocation (the environment's MALLOC_CONF comes after and
+// overrides them): transparent huge pages for its mappings, which a conversion first-touches by
+// the hundreds of MB (houdini_like_tools/CMakeLists.txt).
+extern "C" {
+extern const char* malloc_conf;
+const char* malloc_conf = "thp:always,metadata_thp:auto";
+}
+#endif
+
 int main(int argc, char** argv)
 {
     levelforge::ops::installInterruptHandlers();

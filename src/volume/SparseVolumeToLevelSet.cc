@@ -688,31 +688,40 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     tbb::parallel_for(tbb::blocked_range<size_t>(0, nLeaves, 16), [&](const tbb::blocked_range<size_t>& r) {
         progress_internal::check(interrupter);
         auto acc = field.getConstAccessor();
+        std::vector<iso_surface_internal::Tri> tris; // this leaf's, copied out at its size
+        float block[9][9][9];                        // the leaf's samples and those one step beyond
         for (size_t li = r.begin(); li != r.end(); ++li) {
             const auto& leaf = cellLeaves.leaf(li);
             uint32_t counts[512] = {};
+            const Coord o = leaf.origin();
+            for (int x = 0; x < 9; ++x)
+                for (int y = 0; y < 9; ++y)
+                    for (int z = 0; z < 9; ++z) block[x][y][z] = acc.getValue(o.offsetBy(x, y, z));
+            tris.clear();
             for (auto v = leaf.cbeginValueOn(); v; ++v) {
-                const Coord c = v.getCoord();
+                const int i = int(v.pos() >> 6), j = int((v.pos() >> 3) & 7), k = int(v.pos() & 7);
                 double val[8];
-                openvdb::Vec3d p[8];
                 int nIn = 0;
-                for (int k = 0; k < 8; ++k) {
-                    const Coord q(c.x() + (k & 1), c.y() + ((k >> 1) & 1), c.z() + ((k >> 2) & 1));
-                    const float f = acc.getValue(q);
-                    val[k] = f;
+                for (int q = 0; q < 8; ++q) {
+                    const float f = block[i + (q & 1)][j + ((q >> 1) & 1)][k + ((q >> 2) & 1)];
+                    val[q] = f;
                     nIn += inside(f) ? 1 : 0;
-                    p[k] = openvdb::Vec3d(q.x(), q.y(), q.z()) * h;
                 }
                 ++candidates[li];
                 if (nIn == 0 || nIn == 8) continue;
                 ++crossing[li];
-                const size_t before = perLeaf[li].size();
+                const Coord c = v.getCoord();
+                openvdb::Vec3d p[8];
+                for (int q = 0; q < 8; ++q)
+                    p[q] = openvdb::Vec3d(c.x() + (q & 1), c.y() + ((q >> 1) & 1), c.z() + ((q >> 2) & 1)) * h;
+                const size_t before = tris.size();
                 iso_surface_internal::cellTriangles(val, p, iso, below, [&](const iso_surface_internal::Tri& t) {
                     // the cell search keeps what the welded soup keeps: no triangle without area
-                    if (!cellSearch || hasArea(t, weldScale)) perLeaf[li].push_back(t);
+                    if (!cellSearch || hasArea(t, weldScale)) tris.push_back(t);
                 });
-                counts[v.pos()] = uint32_t(perLeaf[li].size() - before);
+                counts[v.pos()] = uint32_t(tris.size() - before);
             }
+            perLeaf[li].assign(tris.begin(), tris.end());
             if (cellSearch && !perLeaf[li].empty()) {
                 auto& st = cellStart[li];
                 st.assign(513, 0);
