@@ -4,7 +4,6 @@
 #include "expand/VectorExpansion.h"
 
 #include "detail/Timer.h"
-#include "detail/UninitialisedAllocator.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/PseudoNormals.h>
@@ -62,8 +61,6 @@ struct MeshWalk
     std::vector<int32_t> edge;      ///< 3 per triangle: the triangle across each edge (-1: none)
     std::vector<uint32_t> fanBegin; ///< per vertex + 1: offsets into fan
     std::vector<int32_t> fan;       ///< triangles around each vertex, in increasing order
-    /// 3 per triangle: its vertices, contiguous (cache-friendly); filled in parallel
-    std::vector<Vec3d, detail::UninitialisedAllocator<Vec3d>> corners;
     void build(const TriangleMesh& mesh);
 };
 
@@ -152,11 +149,6 @@ namespace {
 void MeshWalk::build(const TriangleMesh& mesh)
 {
     meshAdjacency(mesh, fanBegin, fan, edge);
-    corners.resize(3 * mesh.triangles.size());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, mesh.triangles.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t t = r.begin(); t != r.end(); ++t)
-            for (int k = 0; k < 3; ++k) corners[3 * t + size_t(k)] = mesh.points[mesh.triangles[t][k]];
-    });
 }
 
 class SparseVcvdt
@@ -392,8 +384,8 @@ public:
         std::atomic<uint64_t> evalsTotal{0};
         auto closest = [&](const openvdb::Vec3d& p, int32_t tri, uint64_t& ev) {
             ++ev;
-            const Vec3d* c = &walk.corners[3 * size_t(tri)];
-            return closestPointOnTriangle(p, c[0], c[1], c[2]);
+            const Vec3I& t = mesh.triangles[size_t(tri)];
+            return closestPointOnTriangle(p, mesh.points[t[0]], mesh.points[t[1]], mesh.points[t[2]]);
         };
         // try triangle `start` at p; if strictly closer than (best2, bestT), walk downhill from it
         // greedy walk downhill from triangle cur (squared distance cur2, closest feature curF):
