@@ -574,8 +574,17 @@ openvdb::FloatGrid::Ptr widenBand(const openvdb::FloatGrid& field, const VolumeT
     const double bgW = o.fillInterior ? std::max(double(grid->background()), exteriorWidth * h)
                                       : std::max(exteriorWidth, interiorWidth) * h;
     const float ext = float(exteriorWidth * h), in = float(interiorWidth * h);
-    auto trimmed = keptVoxels(grid->tree(), float(bgW), [&](const Coord&, float x) {
-        return (x < ext && (o.fillInterior || x > -in)) ? x : nan;
+    // Every voxel is signed by its own sample's side of the iso-value, as in the exact shell: the
+    // expansion's signs come from the shell's flood fill, which a thin shell (1.5 voxels) need
+    // not close where the surface meets the data's edge or pinches.
+    tbb::enumerable_thread_specific<openvdb::FloatGrid::ConstAccessor> fieldAcc(
+        [&] { return field.getConstAccessor(); });
+    const double iso = o.iso;
+    const bool below = o.insideBelow;
+    auto trimmed = keptVoxels(grid->tree(), float(bgW), [&](const Coord& c, float x) {
+        const double v = fieldAcc.local().getValue(c);
+        const float s = (below ? v <= iso : v >= iso) ? -std::abs(x) : std::abs(x);
+        return (s < ext && (o.fillInterior || s > -in)) ? s : nan;
     });
     if (o.fillInterior) {
         // Interior tiles the expansion made active stay active (every inside voxel is kept).
@@ -757,14 +766,9 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
             auto tree = cellSearchBand(field, CellSurface{cellLeaves, perLeaf, cellStart}, h, exactExt, exactInt,
                                        inside, o.maxVoxels, interrupter, bandVoxels);
             openvdb::FloatGrid::Ptr grid = levelSetGrid(tree, field.transform().copy(), o.gridName);
-            stats.exactVoxels = stats.activeVoxels = grid->activeVoxelCount();
+            stats.exactVoxels = grid->activeVoxelCount();
             stats.secondsExact = secondsSince(t0);
-            if (interrupter) {
-                interrupter->wasInterrupted(100);
-                interrupter->end();
-            }
-            if (statsOut) *statsOut = stats;
-            return grid;
+            return finishGrid(field, o, grid, stats, statsOut);
         }
         // Exact band with its closest points and triangles, numbered as in the welded soup
         // (every triangle kept here has three distinct weld keys, so the weld keeps each one).

@@ -5,6 +5,7 @@
 #include "TestUtil.h"
 
 #include <levelforge/core/Exceptions.h>
+#include <levelforge/io/VolumeIO.h>
 #include <levelforge/volume/SparseVolumeToLevelSet.h>
 #include <levelforge/volume/VolumeToLevelSet.h>
 
@@ -373,4 +374,39 @@ TEST(SparseVolumeToLevelSet, WidenedBandIsIdenticalForAnyThreadCount)
         if (!acc.probeValue(it.getCoord(), v) || v != *it) ++differ;
     }
     EXPECT_EQ(differ, 0u);
+}
+
+TEST(SparseVolumeToLevelSet, WidenedVoxelsAreSignedByTheirOwnSamples)
+{
+    // Every voxel of the widened band takes its own sample's side of the iso-value, as the
+    // exact shell's voxels do. The expansion's signs came from a flood fill of the 1.5-voxel
+    // shell alone, which mis-signed voxels just beyond it on the MRI brain: 67 at band 3.5 and 94
+    // at band 6 of ch2bet at iso 80 (the dense exact field agrees with the samples there).
+    LEVELFORGE_SHARED_FILE_OR_SKIP(path, "volumes/ch2bet.nii.gz");
+    const ScalarVolume v = readVolume(path);
+    auto g = openvdb::FloatGrid::create(0.0f);
+    g->setName("density");
+    {
+        auto acc = g->getAccessor();
+        for (int k = 0; k < v.dims.z(); ++k)
+            for (int j = 0; j < v.dims.y(); ++j)
+                for (int i = 0; i < v.dims.x(); ++i) acc.setValue(Coord(i, j, k), v(i, j, k));
+    }
+    VolumeToLevelSetOptions o;
+    o.method = VolumeDistanceMethod::VCVDT8;
+    o.subvoxel = true;
+    o.iso = 80.0;
+    o.exteriorWidth = o.interiorWidth = 3.5;
+    SparseVolumeToLevelSetStats st;
+    const auto ls = sparseVolumeToLevelSet(*g, o, &st);
+    ASSERT_TRUE(st.widened);
+    auto facc = g->getConstAccessor();
+    uint64_t checked = 0, wrong = 0;
+    for (auto it = ls->cbeginValueOn(); it; ++it) {
+        const bool inside = facc.getValue(it.getCoord()) >= 80.0f;
+        ++checked;
+        if (*it != 0.0f && (*it < 0.0f) != inside) ++wrong;
+    }
+    EXPECT_GT(checked, 1000000u);
+    EXPECT_EQ(wrong, 0u);
 }
