@@ -125,6 +125,32 @@ void checkBandLeafBudget(const std::string& operation, uint64_t leaves, double w
     checkVoxelBudget(req);
 }
 
+void checkMeshBandBudget(const std::string& operation, const std::vector<Vec3d>& cellPts,
+                         const std::vector<Vec3I>& tris, double reach, double scratchBytes, uint64_t maxVoxels,
+                         openvdb::util::NullInterrupter* interrupter)
+{
+    if (maxVoxels == 0 || tris.empty()) return;
+    Vec3d lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+    for (const Vec3I& t : tris)
+        for (int k = 0; k < 3; ++k) {
+            lo = minComponent(lo, cellPts[t[k]]);
+            hi = maxComponent(hi, cellPts[t[k]]);
+        }
+    const double r = reach + 1e-4;
+    const CoordBBox box = leafRange(lo, hi, r);
+    const double upperLeaves = double(box.dim().x()) * double(box.dim().y()) * double(box.dim().z());
+    const double budget = double(maxVoxels) - std::max(0.0, scratchBytes) / 4.0;
+    if (upperLeaves * 512.0 <= budget) return; // the whole dilated box fits
+    constexpr double kPi = 3.14159265358979323846;
+    const double inner = std::max(0.0, reach - 8.0 * std::sqrt(3.0)); // leaves wholly inside the ball
+    if (4.0 / 3.0 * kPi * inner * inner * inner > budget) {
+        checkBandLeafBudget(operation, uint64_t(std::min(upperLeaves, 1.8e19 / 512.0)), reach, scratchBytes, maxVoxels);
+        return; // (not reached: the upper bound exceeds the budget too)
+    }
+    checkBandLeafBudget(operation, bandLeafCount(cellPts, tris, {}, reach, interrupter), reach, scratchBytes,
+                        maxVoxels);
+}
+
 double budgetVoxels(const VoxelBudgetRequest& r)
 {
     return r.voxels + std::max(0.0, r.scratchBytes) / 4.0;

@@ -60,6 +60,20 @@ struct VoxelBudgetRequest
 void checkBandLeafBudget(const std::string& operation, uint64_t leaves, double width, double scratchBytes,
                          uint64_t maxVoxels);
 
+/// @brief checkBandLeafBudget() for the band of width @p reach around a mesh, counting its leaves
+///        (bandLeafCount()) only when the answer needs it.
+///
+/// Accepted at once when the leaves of the mesh's box dilated by the reach (an upper bound of the
+/// band's) fit; refused at once when the voxels of a ball of radius reach − 8√3 around a vertex
+/// (a lower bound: the band holds the leaves inside the ball around any surface point) do not,
+/// the message quoting the upper bound. Otherwise the leaves are counted. An absurd band is then
+/// refused in microseconds instead of after marking tens of millions of leaves.
+/// @param cellPts, tris, reach, interrupter  as for bandLeafCount()
+/// @param operation, scratchBytes, maxVoxels   as for checkBandLeafBudget() (0: no limit, no count)
+void checkMeshBandBudget(const std::string& operation, const std::vector<Vec3d>& cellPts,
+                         const std::vector<Vec3I>& tris, double reach, double scratchBytes, uint64_t maxVoxels,
+                         openvdb::util::NullInterrupter* interrupter = nullptr);
+
 /// @brief Voxels' worth (4 bytes each) of output plus scratch: what is compared with maxVoxels.
 double budgetVoxels(const VoxelBudgetRequest& r);
 

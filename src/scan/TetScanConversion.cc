@@ -198,10 +198,9 @@ openvdb::FloatGrid::Ptr TetScanConverter::run(TetScanStats* statsOut)
         // (the dilated surface's real volume, not area × width), plus each thread's dense slab.
         std::vector<Vec3d> cellPts(mMesh.points.size());
         for (size_t i = 0; i < cellPts.size(); ++i) cellPts[i] = mMesh.points[i] / h + Vec3d(0.5);
-        const uint64_t leaves = detail::bandLeafCount(cellPts, mMesh.triangles, {}, eps, o.interrupter);
-        detail::checkBandLeafBudget("mesh to level set (scan conversion)", leaves, eps,
+        detail::checkMeshBandBudget("mesh to level set (scan conversion)", cellPts, mMesh.triangles, eps,
                                     double(detail::budgetThreads()) * double(o.slabDepth) * o.slabWidth * o.slabWidth * 8.0,
-                                    o.maxVoxels);
+                                    o.maxVoxels, o.interrupter);
     }
 
     // ---- 1. shell, in index space (voxel centres at integer coordinates)

@@ -194,3 +194,33 @@ TEST(VoxelBudget, ALongObliqueNeedleIsNotRefusedForItsBox)
     EXPECT_GT(checked, 10000u);
     EXPECT_LE(maxError, 1e-4);
 }
+
+TEST(VoxelBudget, TheMeshBandCheckCountsOnlyWhenItsBoundsDoNotDecide)
+{
+    // A diagonal sliver 400 voxels long, band 10: its dilated box (the quick upper bound) holds
+    // ~53 times the leaves of the band itself, and the ball around a vertex (the quick lower
+    // bound) far fewer. A limit between the band's count and the box's must be decided by the
+    // count: accepted when the count fits, refused with the count when it does not.
+    const std::vector<Vec3d> pts = {Vec3d(0.5), Vec3d(400.5, 400.5, 400.5), Vec3d(400.5, 401.5, 400.5)};
+    const std::vector<Vec3I> tris = {Vec3I(0, 1, 2)};
+    const double reach = 10.0;
+    const uint64_t leaves = detail::bandLeafCount(pts, tris, {}, reach);
+    const double boxLeaves = std::pow(std::ceil((400.0 + 2 * reach) / 8.0) + 1.0, 3.0);
+    ASSERT_GT(boxLeaves, 20.0 * double(leaves)); // the box alone would refuse a fitting band
+    EXPECT_NO_THROW(detail::checkMeshBandBudget("op", pts, tris, reach, 0.0, leaves * 512));
+    try {
+        detail::checkMeshBandBudget("op", pts, tris, reach, 0.0, leaves * 512 - 1);
+        FAIL() << "expected ResourceLimitError";
+    } catch (const ResourceLimitError& e) {
+        EXPECT_NE(std::string(e.what()).find("(" + std::to_string(leaves) + " leaf nodes within 10 voxels"),
+                  std::string::npos) << e.what();
+    }
+    // the box fits: accepted without a count; the ball cannot fit: refused from the box
+    EXPECT_NO_THROW(detail::checkMeshBandBudget("op", pts, tris, reach, 0.0, uint64_t(boxLeaves * 512.0)));
+    try {
+        detail::checkMeshBandBudget("op", pts, tris, 5000.0, 0.0, uint64_t(1) << 31);
+        FAIL() << "expected ResourceLimitError";
+    } catch (const ResourceLimitError& e) {
+        EXPECT_NE(std::string(e.what()).find("leaf nodes within 5000 voxels"), std::string::npos) << e.what();
+    }
+}
