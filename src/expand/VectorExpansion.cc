@@ -56,12 +56,13 @@ inline void relax(Cell& best, const Cell& n, float ox, float oy, float oz)
     if (d2 < best.d2) best = Cell{x, y, z, d2, n.tri};
 }
 
+/// The adjacency the refinement walks over (meshAdjacency()); points are read through the mesh.
 struct MeshWalk
 {
     std::vector<int32_t> edge;      ///< 3 per triangle: the triangle across each edge (-1: none)
     std::vector<uint32_t> fanBegin; ///< per vertex + 1: offsets into fan
     std::vector<int32_t> fan;       ///< triangles around each vertex, in increasing order
-    void build(const TriangleMesh& mesh);
+    void build(const TriangleMesh& mesh) { meshAdjacency(mesh, fanBegin, fan, edge); }
 };
 
 /// The undirected key of edge e of triangle t (its end points, smaller first).
@@ -145,11 +146,6 @@ void meshAdjacency(const TriangleMesh& mesh, std::vector<uint32_t>& fanBegin, st
 }
 
 namespace {
-
-void MeshWalk::build(const TriangleMesh& mesh)
-{
-    meshAdjacency(mesh, fanBegin, fan, edge);
-}
 
 class SparseVcvdt
 {
