@@ -82,6 +82,17 @@ void requireFinite(const openvdb::FloatGrid& field)
     }
 }
 
+/// The side rule of the options: a sample is inside at or below the iso-value (insideBelow) or at
+/// or above it.
+inline bool insideSample(const VolumeToLevelSetOptions& o, double v) { return o.insideBelow ? v <= o.iso : v >= o.iso; }
+
+/// Throws unless n triangles (and their at most 3n welded points) fit 32-bit indices.
+void checkTriangleCount(const openvdb::FloatGrid& field, size_t n)
+{
+    if (n > size_t(std::numeric_limits<uint32_t>::max() / 3))
+        throw ResourceLimitError(gridLabel(field) + ": the iso-surface has more triangles than 32-bit indices allow");
+}
+
 /// A tree of background `bg` holding, leaf by leaf, the active voxels of `src` for which
 /// value(coord, v) is not NaN, with that value (TBB over the leaves; no flood fill yet).
 template<typename F>
@@ -575,15 +586,12 @@ openvdb::FloatGrid::Ptr widenBand(const openvdb::FloatGrid& field, const VolumeT
                                       : std::max(exteriorWidth, interiorWidth) * h;
     const float ext = float(exteriorWidth * h), in = float(interiorWidth * h);
     // Every voxel is signed by its own sample's side of the iso-value, as in the exact shell: the
-    // expansion's signs come from the shell's flood fill, which a thin shell (1.5 voxels) need
-    // not close where the surface meets the data's edge or pinches.
+    // expansion carries the signs of the 1.5-voxel shell's flood fill, which mis-signed voxels
+    // just beyond the shell on ch2bet (SparseVolumeToLevelSet.WidenedVoxelsAreSignedByTheirOwnSamples).
     tbb::enumerable_thread_specific<openvdb::FloatGrid::ConstAccessor> fieldAcc(
         [&] { return field.getConstAccessor(); });
-    const double iso = o.iso;
-    const bool below = o.insideBelow;
     auto trimmed = keptVoxels(grid->tree(), float(bgW), [&](const Coord& c, float x) {
-        const double v = fieldAcc.local().getValue(c);
-        const float s = (below ? v <= iso : v >= iso) ? -std::abs(x) : std::abs(x);
+        const float s = insideSample(o, fieldAcc.local().getValue(c)) ? -std::abs(x) : std::abs(x);
         return (s < ext && (o.fillInterior || s > -in)) ? s : nan;
     });
     if (o.fillInterior) {
@@ -631,7 +639,7 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
     SparseVolumeToLevelSetStats stats;
     const double iso = o.iso;
     const bool below = o.insideBelow;
-    auto inside = [&](float v) { return below ? double(v) <= iso : double(v) >= iso; };
+    auto inside = [&](float v) { return insideSample(o, v); };
 
     // The exact band's width (step 2). Up to kExactUpTo voxels the whole band is exact: measured
     // on ch2bet (7.1 M active voxels, band 3), the exact band at 3 voxels costs less CPU (8.4 s)
@@ -772,9 +780,7 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
         }
         // Exact band with its closest points and triangles, numbered as in the welded soup
         // (every triangle kept here has three distinct weld keys, so the weld keeps each one).
-        if (n > size_t(std::numeric_limits<int32_t>::max()))
-            throw ResourceLimitError(gridLabel(field) + ": the iso-surface has more triangles than 32-bit "
-                                     "indices allow");
+        checkTriangleCount(field, n);
         std::vector<uint32_t> firstId(nLeaves, 0);
         for (size_t li = 1; li < nLeaves; ++li) firstId[li] = firstId[li - 1] + uint32_t(perLeaf[li - 1].size());
         BandClosest bc{firstId, nullptr, nullptr};
@@ -806,9 +812,7 @@ openvdb::FloatGrid::Ptr sparseVolumeToLevelSet(const openvdb::FloatGrid& field, 
                << (bgInside ? "inside" : "outside") << ")";
             throw InvalidArgumentError(os.str());
         }
-        if (n > size_t(std::numeric_limits<uint32_t>::max() / 3))
-            throw ResourceLimitError(gridLabel(field) + ": the iso-surface has more triangles than 32-bit "
-                                     "indices allow");
+        checkTriangleCount(field, n);
         for (size_t li = 0; li < nLeaves; ++li) {
             stats.candidateCells += candidates[li];
             stats.surfaceCells += crossing[li];
