@@ -5,6 +5,7 @@
 #include "detail/VoxelBudget.h"
 #include "detail/Timer.h"
 #include "mesh/MeshToLevelSetInternal.h"
+#include "mesh/SearchLists.h"
 #include "mesh/WindingSignInternal.h"
 
 #include <levelforge/core/Exceptions.h>
@@ -37,6 +38,8 @@
 namespace levelforge {
 namespace meshtols_internal {
 
+namespace { // helpers of computeLeaf(), private to this translation unit (direct calls, no PLT)
+
 /// The search state of one voxel (or of a block's centre): the best triangle so far and the
 /// pruning radii.
 struct VoxelSearch
@@ -48,8 +51,9 @@ struct VoxelSearch
     double bm2;   // (sqrt(best2) + margin + extra)²: boxes and bounds at or beyond it are pruned
     float bm2f;
     float em2f;   // (sqrt(best2) + margin)²: triangles with bounds below it are evaluated exactly
-    double extra = 0.0; // block search: clusters are collected this much beyond the best distance
-    std::vector<std::pair<float, uint32_t>>* collect = nullptr; // block search: where they go
+    double extra = 0.0; // block search: triangles are listed this much beyond the best distance
+    bool listing = false; // block search: list them (Scratch::bt*)
+    float tauK = 0.0f, tauR = 0.0f; // block search: the separating plane's rounding allowance
     uint32_t seed = kNone;
 
     void tighten(double margin)
@@ -76,19 +80,33 @@ inline void evaluate(const Context& ctx, VoxelSearch& v, uint32_t t, Scratch& s)
 }
 
 /// Bounds of a cluster's triangles, then exact evaluation of the survivors in increasing bound
-/// order while the bound is below the best distance. In a block search (v.collect), a cluster
-/// with a bound below the enlarged radius is also listed, keyed by its smallest bound.
+/// order while the bound is below the best distance. In a block search (v.listing), the
+/// triangles with a bound below the enlarged radius are also listed (listTriangles()).
 __attribute__((always_inline)) inline void visitCluster(const Context& ctx, uint32_t ci, VoxelSearch& v, Scratch& s)
 {
     const TriangleCluster& c = ctx.hierarchy.clusters()[ci];
     const Vec3d q = v.p - c.origin;
-    alignas(16) float lb2[kClusterSize];
-    uint32_t mask = clusterBounds(c, float(q[0]), float(q[1]), float(q[2]), v.bm2f, lb2);
+    alignas(32) float lb2[kClusterSize];
     s.boundTests += c.count;
-    if (v.collect && mask) {
-        float lo = lb2[__builtin_ctz(mask)];
-        for (uint32_t m = mask; m; m &= m - 1) lo = std::min(lo, lb2[__builtin_ctz(m)]);
-        v.collect->emplace_back(std::sqrt(lo), ci);
+    uint32_t mask;
+    if (v.listing && s.btCount <= kMaxListed && !s.btClustersOnly) {
+        alignas(32) float g[3][kClusterSize];
+        mask = clusterBoundsDirections(c, float(q[0]), float(q[1]), float(q[2]), v.bm2f, lb2, g[0], g[1], g[2]);
+        if (mask) {
+            float lo = lb2[__builtin_ctz(mask)];
+            for (uint32_t m = mask; m; m &= m - 1) lo = std::min(lo, lb2[__builtin_ctz(m)]);
+            s.blockList.emplace_back(std::sqrt(lo), ci);
+            listTriangles(c, ci, mask, lb2, g, v.tauK, v.tauR, s);
+        }
+    } else {
+        mask = clusterBounds(c, float(q[0]), float(q[1]), float(q[2]), v.bm2f, lb2);
+        if (v.listing && mask) { // a block with too many triangles to list: its clusters only
+            float lo = lb2[__builtin_ctz(mask)];
+            for (uint32_t m = mask; m; m &= m - 1) lo = std::min(lo, lb2[__builtin_ctz(m)]);
+            s.blockList.emplace_back(std::sqrt(lo), ci);
+            s.btLanes += uint32_t(__builtin_popcount(mask));
+            if (s.btCount <= kMaxListed) s.btCount = kMaxListed + 1;
+        }
     }
     while (mask) {
         uint32_t pick = uint32_t(__builtin_ctz(mask));
@@ -128,178 +146,7 @@ inline void searchSubtree(const Context& ctx, uint32_t root, double rootD2, Voxe
     }
 }
 
-/// The frontier of a leaf: hierarchy nodes whose boxes come closer than the band limit to the
-/// box of the leaf's voxel centres, so that every triangle within the limit of a voxel of the
-/// leaf lies in one of their subtrees. Where at most kMaxFlat clusters qualify, the frontier is
-/// those clusters (flat: one vectorised pass over their boxes per voxel); otherwise at most
-/// kMaxFrontier nodes, as deep as that allows, searched as subtrees. Sorted by distance to the
-/// leaf centre (ties by node index).
-void leafFrontier(const Context& ctx, const Coord& origin, Scratch& s)
-{
-    const auto& nodes = ctx.hierarchy.nodes();
-    const Vec3d lo(origin.x() + 0.5, origin.y() + 0.5, origin.z() + 0.5), hi = lo + Vec3d(7.0);
-    const double reach = ctx.limit + ctx.margin, reach2 = reach * reach;
-    s.front.clear();
-    s.flat = false;
-    if (nodes.empty() || boxBoxDistanceSqr(nodes[0], lo, hi) >= reach2) { s.order.clear(); return; }
-    // flat: every cluster within reach, unless there are too many
-    bool flat = true;
-    s.next.clear();
-    s.next.push_back(0);
-    while (!s.next.empty()) {
-        const uint32_t ni = s.next.back();
-        s.next.pop_back();
-        const HierarchyNode& n = nodes[ni];
-        if (n.isLeaf()) {
-            s.front.push_back(ni);
-            if (s.front.size() > kMaxFlat) { flat = false; break; }
-            continue;
-        }
-        if (boxBoxDistanceSqr(nodes[n.right], lo, hi) < reach2) s.next.push_back(n.right);
-        if (boxBoxDistanceSqr(nodes[n.left], lo, hi) < reach2) s.next.push_back(n.left);
-    }
-    if (!flat) {
-        s.front.clear();
-        s.front.push_back(0);
-        for (bool changed = true; changed;) {
-            changed = false;
-            s.next.clear();
-            for (size_t i = 0; i < s.front.size(); ++i) {
-                const HierarchyNode& n = nodes[s.front[i]];
-                if (n.isLeaf()) { s.next.push_back(s.front[i]); continue; }
-                const bool l = boxBoxDistanceSqr(nodes[n.left], lo, hi) < reach2;
-                const bool r = boxBoxDistanceSqr(nodes[n.right], lo, hi) < reach2;
-                const size_t remaining = s.front.size() - i - 1;
-                if (s.next.size() + size_t(l) + size_t(r) + remaining > kMaxFrontier) { s.next.push_back(s.front[i]); continue; }
-                if (l) s.next.push_back(n.left);
-                if (r) s.next.push_back(n.right);
-                changed = true;
-            }
-            s.front.swap(s.next);
-        }
-    }
-    s.flat = flat;
-    const Vec3d centre = (lo + hi) * 0.5;
-    s.order.clear();
-    for (uint32_t ni : s.front) s.order.emplace_back(boxDistanceSqr(nodes[ni], centre), ni);
-    // flat clusters stay in the hierarchy's depth-first order, so that groups of 8 consecutive
-    // ones are compact; subtrees go nearest first
-    if (!flat) std::sort(s.order.begin(), s.order.end());
-    // Single-precision copies of the boxes, relative to the leaf centre and widened by more than
-    // their rounding, so that the vectorised box distance never exceeds the true one.
-    if (s.levels.empty()) s.levels.resize(8);
-    {
-        Scratch::Level& L = s.levels[0];
-        L.count = s.order.size();
-        L.stride = (L.count + 7) & ~size_t(7);
-        L.box.assign(6 * L.stride, 1e30f);
-        for (size_t i = 0; i < L.count; ++i) {
-            const HierarchyNode& n = nodes[s.order[i].second];
-            for (int k = 0; k < 3; ++k) {
-                const double lo = n.lo[k] - centre[k], hi = n.hi[k] - centre[k];
-                const double pad = 1e-6 * (std::abs(lo) + std::abs(hi)) + 1e-6;
-                L.box[k * L.stride + i] = float(lo - pad);
-                L.box[(3 + k) * L.stride + i] = float(hi + pad);
-            }
-        }
-    }
-    s.nLevels = 1;
-    while (s.levels[s.nLevels - 1].count > 8) {
-        const Scratch::Level& below = s.levels[s.nLevels - 1];
-        if (s.nLevels == s.levels.size()) s.levels.resize(s.nLevels + 1);
-        Scratch::Level& L = s.levels[s.nLevels];
-        const Scratch::Level& B = s.levels[s.nLevels - 1];
-        L.count = (below.count + 7) / 8;
-        L.stride = (L.count + 7) & ~size_t(7);
-        L.box.assign(6 * L.stride, 1e30f);
-        for (size_t g = 0; g < L.count; ++g)
-            for (int k = 0; k < 3; ++k) {
-                float lo = std::numeric_limits<float>::max(), hi = -lo;
-                for (size_t i = 8 * g; i < 8 * g + 8 && i < B.count; ++i) {
-                    lo = std::min(lo, B.box[k * B.stride + i]);
-                    hi = std::max(hi, B.box[(3 + k) * B.stride + i]);
-                }
-                L.box[k * L.stride + g] = lo;
-                L.box[(3 + k) * L.stride + g] = hi;
-            }
-        ++s.nLevels;
-    }
-}
-
-/// Squared distances from q (relative to the leaf centre) to the boxes [begin, end) of the SoA
-/// box arrays F (6 arrays of `n` floats), into d2[0, end - begin); begin and end multiples of 4.
-/// SSE2 on x86-64.
-inline void boxDistances(const float* F, size_t n, size_t begin, size_t end, float qx, float qy, float qz, float* d2)
-{
-#if defined(__SSE2__)
-    const __m128 Q[3] = {_mm_set1_ps(qx), _mm_set1_ps(qy), _mm_set1_ps(qz)};
-    const __m128 zero = _mm_setzero_ps();
-    for (size_t i = begin; i < end; i += 4) {
-        __m128 acc = zero;
-        for (int k = 0; k < 3; ++k) {
-            const __m128 lo = _mm_loadu_ps(F + k * n + i), hi = _mm_loadu_ps(F + (3 + k) * n + i);
-            const __m128 e = _mm_max_ps(_mm_max_ps(_mm_sub_ps(lo, Q[k]), _mm_sub_ps(Q[k], hi)), zero);
-            acc = _mm_add_ps(acc, _mm_mul_ps(e, e));
-        }
-        _mm_storeu_ps(d2 + (i - begin), acc);
-    }
-#else
-    const float q[3] = {qx, qy, qz};
-    for (size_t i = begin; i < end; ++i) {
-        float acc = 0.0f;
-        for (int k = 0; k < 3; ++k) {
-            const float e = std::max(std::max(F[k * n + i] - q[k], q[k] - F[(3 + k) * n + i]), 0.0f);
-            acc += e * e;
-        }
-        d2[i - begin] = acc;
-    }
-#endif
-}
-
-/// The long-list branch of sortNearestFirst(), out of line: inlined into callers with 8-entry
-/// arrays, GCC 12 warns (-Warray-bounds) about a branch those callers never take.
-__attribute__((noinline)) void sortNearestFirstLong(uint32_t* idx, uint32_t n, const float* d2)
-{
-    std::sort(idx, idx + n, [d2](uint32_t a, uint32_t b) { return d2[a] < d2[b] || (d2[a] == d2[b] && a < b); });
-}
-
-/// Sorts the indices idx[0, n) by d2[idx] (ties by index): insertion sort for short lists.
-inline void sortNearestFirst(uint32_t* idx, uint32_t n, const float* d2)
-{
-    auto nearer = [d2](uint32_t a, uint32_t b) { return d2[a] < d2[b] || (d2[a] == d2[b] && a < b); };
-    if (n > 16) {
-        sortNearestFirstLong(idx, n, d2);
-        return;
-    }
-    for (uint32_t k = 1; k < n; ++k) {
-        const uint32_t x = idx[k];
-        uint32_t j = k;
-        for (; j > 0 && nearer(x, idx[j - 1]); --j) idx[j] = idx[j - 1];
-        idx[j] = x;
-    }
-}
-
-/// The boxes of a block's listed clusters, in single precision relative to the block centre c
-/// and widened by more than their rounding (as the frontier's levels), 6 SoA arrays of
-/// s.blockStride floats (a multiple of 8, padded with far boxes).
-void blockBoxes(const Context& ctx, const Vec3d& c, Scratch& s)
-{
-    const auto& nodes = ctx.hierarchy.nodes();
-    const auto& clusters = ctx.hierarchy.clusters();
-    const size_t n = s.blockList.size();
-    s.blockStride = (n + 7) & ~size_t(7);
-    s.blockBox.assign(6 * s.blockStride, 1e30f);
-    if (s.blockD2.size() < s.blockStride) s.blockD2.resize(s.blockStride);
-    for (size_t i = 0; i < n; ++i) {
-        const HierarchyNode& b = nodes[clusters[s.blockList[i].second].node];
-        for (int k = 0; k < 3; ++k) {
-            const double lo = b.lo[k] - c[k], hi = b.hi[k] - c[k];
-            const double pad = 1e-6 * (std::abs(lo) + std::abs(hi)) + 1e-6;
-            s.blockBox[k * s.blockStride + i] = float(lo - pad);
-            s.blockBox[(3 + k) * s.blockStride + i] = float(hi + pad);
-        }
-    }
-}
+} // namespace
 
 /// Fills one output leaf with origin `origin`; returns nullptr if no voxel is active.
 // cpOut / triOut (optional, together): receive leaves of closest-point offsets (voxel units) and
@@ -359,19 +206,36 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
     // Blocks of 2×2×2 voxels first: a block with no triangle within
     // limit + r of its centre c (r = √3/2, the distance of its voxel centres) holds no voxel
     // within the limit (nothing to search, its signs come from the flood fill). Otherwise the
-    // block's search finds the distance D of c and lists every cluster with a triangle T whose
-    // bound at c is below D + 2r: a triangle closest to a voxel v of the block has
-    // d(c, T) <= d(v, T) + r <= d(v, T_c) + r <= D + 2r, so the block's voxels search only that
-    // list, nearest first, until its bound at c minus r passes their best distance (no descent
-    // per voxel), visiting only the clusters whose box is closer than that distance (one
-    // vectorised pass over the list's boxes per voxel). For a triangle split into pieces, the
-    // cluster that counts is the one holding the piece with v's closest point x: it is in the
-    // leaf's frontier (d(v, x) < limit), its box is within |c - x| <= D + 2r of c and within
-    // d(v, x) of v, so it is never pruned and is listed. (Until 2026-12-07 wide bands, limit >= 8,
-    // searched the frontier per voxel instead: 6x the box tests at band 20.)
+    // block's search finds the distance D of c and lists every triangle T whose bound at c is
+    // below D + 2r: a triangle closest to a voxel v of the block has
+    // d(c, T) <= d(v, T) + r <= d(v, T_c) + r <= D + 2r. (For a triangle split into pieces, the
+    // piece holding v's closest point x is in the leaf's frontier, d(v, x) < limit, and its box
+    // is within |c - x| <= D + 2r of c, so the search visits it.) With T its separating plane at
+    // c: the closest point x_c of T to c (as the single-precision bound finds it) and the unit
+    // vector g = (c - x_c) / d(c, T). T lies beyond that plane, (c - y)·g >= d(c, T) for every
+    // y in T (x_c is the projection of c onto the convex T), so for any voxel v
+    //     d(v, T) >= (v - y)·g >= d(c, T) + g·(v - c),
+    // a bound tight to first order where d(c, T) = D + 2r is not (where x_c lies inside the
+    // face it is the plane distance at v, exact). Each voxel takes the larger of the two bounds
+    // per listed triangle (one vectorised pass) and evaluates exactly, nearest bound first, the
+    // triangles whose bound is below its best distance plus the margin: on armadillo_100k at
+    // 256 voxels, band 20, 5 triangles per voxel pass of the 102 listed per block, where the
+    // bound d(c, T) - r alone leaves 47. The plane's rounding allowance tauK (1 + tauR / d(c, T))
+    // covers the single-precision closest point: a direction error |dx_c| / d(c, T) moves the
+    // bound by at most (d(c, T) + diameter(T) + r) times it. (Until 2026-12-07 the block listed
+    // clusters and each voxel visited those whose box came closer than its best distance,
+    // 92 triangle bounds and 45 boxes per voxel; before that, wide bands, limit >= 8, searched
+    // the frontier per voxel: 6x the box tests at band 20.)
     constexpr double kHalfDiagonal = 0.8660254037844387 + 1e-12;
+    constexpr size_t kDirectCandidates = 12; // more candidates at a voxel: bound their clusters at the voxel
     const double blockReach = ctx.limit + kHalfDiagonal + ctx.margin;
+    const double radius = ctx.hierarchy.maxClusterRadius();
+    const float tauK = float(4e-6 * (ctx.limit + 2.0 * radius + 4.0)), tauR = float(2.0 * radius + 2.0);
     const size_t top = s.nLevels - 1;
+    // a frontier of subtrees (more clusters within reach than kMaxFlat: a dense mesh in a few
+    // cells) lists clusters only from the first block on
+    s.btClustersOnly = !s.flat;
+    if (ctx.hierarchy.pieces() != 0 && s.btSeen.size() != ctx.mesh.triangles.size()) s.btSeen.assign(ctx.mesh.triangles.size(), 0u);
     for (int bx = 0; bx < 4; ++bx)
         for (int by = 0; by < 4; ++by)
             for (int bz = 0; bz < 4; ++bz) {
@@ -384,36 +248,91 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
                 v.bestT = kNone;
                 v.seed = seed;
                 v.extra = 2.0 * kHalfDiagonal + ctx.margin;
-                v.collect = &s.blockList;
+                v.listing = true;
+                v.tauK = tauK;
+                v.tauR = tauR;
+                s.btCount = 0;
+                s.btLanes = 0;
                 s.blockList.clear();
+                if (!s.btSeen.empty() && ++s.btBlock == 0) { // a new stamp; all clear after 2^32 blocks
+                    std::fill(s.btSeen.begin(), s.btSeen.end(), 0u);
+                    s.btBlock = 1;
+                }
                 v.tighten(ctx.margin);
                 if (seed != kNone) evaluate(ctx, v, seed, s);
                 descend(descend, top, 0, s.levels[top].count, float(2 * bx - 3), float(2 * by - 3), float(2 * bz - 3));
                 v.extra = 0.0;
-                v.collect = nullptr;
+                v.listing = false;
                 if (v.bestT == kNone) continue;
                 seed = v.bestT;
-                std::sort(s.blockList.begin(), s.blockList.end());
-                blockBoxes(ctx, v.p, s);
-                const size_t listed = s.blockList.size();
+                {
+                    const size_t padded = (s.btCount + 7) & ~size_t(7);
+                    if (padded > s.btId.size()) s.growBlockTriangles(padded);
+                    for (size_t i = s.btCount; i < padded; ++i) {
+                        s.btPlane[i] = -1e30f;
+                        s.btBall[i] = 1e30f;
+                        s.btX[i] = s.btY[i] = s.btZ[i] = 0.0f;
+                    }
+                }
+                const size_t listed = s.btCount, padded = (listed + 7) & ~size_t(7);
+                const bool byClusters = listed > kMaxListed;
+                // the next block of the leaf lists only clusters when this one had too many
+                // triangles (dense meshes at coarse voxels: their blocks all do)
+                s.btClustersOnly = s.btCount + s.btLanes > kMaxListed;
+                if (byClusters) {
+                    std::sort(s.blockList.begin(), s.blockList.end());
+                    blockBoxes(ctx, v.p, s);
+                }
                 for (int corner = 0; corner < 8; ++corner) {
                     const int vx = 2 * bx + (corner >> 2), vy = 2 * by + ((corner >> 1) & 1), vz = 2 * bz + (corner & 1);
                     ++s.candidateVoxels;
                     v.p = Vec3d(origin.x() + vx + 0.5, origin.y() + vy + 0.5, origin.z() + vz + 0.5);
                     v.best2 = ctx.limit2;
                     v.bestT = kNone;
-                    v.seed = seed;
+                    v.seed = kNone;
                     v.tighten(ctx.margin);
-                    if (seed != kNone) evaluate(ctx, v, seed, s);
-                    // the listed clusters' boxes at this voxel (one vectorised pass), then by key
-                    // those whose box is within the search radius
-                    boxDistances(s.blockBox.data(), s.blockStride, 0, s.blockStride, float(vx & 1) - 0.5f,
-                                 float(vy & 1) - 0.5f, float(vz & 1) - 0.5f, s.blockD2.data());
-                    s.nodeTests += listed;
-                    for (size_t i = 0; i < listed; ++i) {
-                        const double lo = double(s.blockList[i].first) - kHalfDiagonal - ctx.margin;
-                        if (lo > 0.0 && lo * lo >= v.bm2) break;
-                        if (s.blockD2[i] < v.bm2f) visitCluster(ctx, s.blockList[i].second, v, s);
+                    if (byClusters) {
+                        // too many triangles for a pass over each: the listed clusters' boxes at
+                        // this voxel (one vectorised pass), then by key those whose box is within
+                        // the search radius, their triangles' bounds at the voxel itself
+                        v.seed = seed;
+                        if (seed != kNone) evaluate(ctx, v, seed, s);
+                        boxDistances(s.blockBox.data(), s.blockStride, 0, s.blockStride, float(vx & 1) - 0.5f,
+                                     float(vy & 1) - 0.5f, float(vz & 1) - 0.5f, s.blockD2.data());
+                        s.nodeTests += s.blockList.size();
+                        for (size_t i = 0; i < s.blockList.size(); ++i) {
+                            const double lo = double(s.blockList[i].first) - kHalfDiagonal - ctx.margin;
+                            if (lo > 0.0 && lo * lo >= v.bm2) break;
+                            if (s.blockD2[i] < v.bm2f) visitCluster(ctx, s.blockList[i].second, v, s);
+                        }
+                    } else {
+                    // the listed triangles' bounds at this voxel (one vectorised pass); the
+                    // smallest first (mostly the closest triangle: the tightest threshold), then
+                    // exactly every other one below the best distance plus the margin
+                    const float dx = float(vx & 1) - 0.5f, dy = float(vy & 1) - 0.5f, dz = float(vz & 1) - 0.5f;
+                    const size_t first = blockTriangleBounds(s, padded, dx, dy, dz, s.btLb.data());
+                    s.boundTests += listed;
+                    evaluate(ctx, v, s.btId[first], s);
+                    selectBelow(s.btLb.data(), padded, std::nextafter(float(std::sqrt(v.best2) + ctx.margin), 3.0e38f), s.btCand);
+                    if (s.btCand.size() <= kDirectCandidates) {
+                        for (const auto& [bound, i] : s.btCand) {
+                            if (!(double(bound) < std::sqrt(v.best2) + ctx.margin)) continue;
+                            const uint32_t t = s.btId[i];
+                            if (t == v.bestT) continue;
+                            evaluate(ctx, v, t, s);
+                        }
+                    } else {
+                        // Many triangles tie to first order (tiny triangles next to the voxel, a
+                        // fan around a vertex): their clusters' bounds at the voxel itself, as the
+                        // search does (a cluster's entries are consecutive in the list).
+                        uint32_t last = kNone;
+                        for (const auto& [bound, i] : s.btCand) {
+                            const uint32_t ci = s.btCluster[i];
+                            if (ci == last || !(double(bound) < std::sqrt(v.best2) + ctx.margin)) continue;
+                            last = ci;
+                            visitCluster(ctx, ci, v, s);
+                        }
+                    }
                     }
                 seed = v.bestT;
                 if (v.bestT == kNone) continue; // nothing within reach: sign left to the flood fill
@@ -427,7 +346,7 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
                     }
                     continue;
                 }
-                const bool inside = ctx.normals.isInside(v.bestT, v.bestCp, v.p);
+                const bool inside = LazyPseudoNormals::insideOf(v.p, v.bestCp.point, cachedNormal(ctx.normals, s, ctx.mesh, v.bestT, v.bestCp.feature));
                 if (inside ? d < ctx.intW : d < ctx.extW) {
                     res.sdf->setValueOn(offset, float((inside ? -d : d) * ctx.voxelSize));
                     if (wantClosest) {

@@ -111,7 +111,7 @@ LeafResult finishFromClosest(const Context& ctx, const Coord& origin, Scratch& s
             }
             continue;
         }
-        const bool inside = LazyPseudoNormals::insideOf(p, cp.point, cachedNormal(ctx.normals, s, t, cp.feature));
+        const bool inside = LazyPseudoNormals::insideOf(p, cp.point, cachedNormal(ctx.normals, s, ctx.mesh, t, cp.feature));
         if (inside ? d < ctx.intW : d < ctx.extW) {
             res.sdf->setValueOn(v, float((inside ? -d : d) * ctx.voxelSize));
             if (wantClosest) {

@@ -73,7 +73,8 @@ struct Scratch
         uint64_t key = ~uint64_t(0);
         Vec3d n;
     };
-    CachedNormal normalCache[256];
+    static constexpr int kNormalCacheBits = 9;
+    CachedNormal normalCache[1u << kNormalCacheBits];
     float leafMin[512], leafThr[512];
     double leafBest2[512];
     uint32_t leafTri[512];
@@ -93,10 +94,33 @@ struct Scratch
     size_t nLevels = 0;
     std::vector<std::pair<uint32_t, double>> stack; // traversal stack: node, its box distance²
     uint64_t evaluations = 0, boundTests = 0, nodeTests = 0, candidateVoxels = 0, activeVoxels = 0, leafPasses = 0;
-    std::vector<std::pair<float, uint32_t>> blockList; // a 2×2×2 block's clusters: key, cluster index
-    std::vector<float> blockBox;                       // their boxes (6 SoA arrays, relative to the block centre)
+    // A 2×2×2 block's triangles, as its centre's search lists them (SoA, padded to a multiple of
+    // 8 with far entries): per triangle the terms of two lower bounds of its distance to a voxel
+    // of the block (the separating plane's distance at the centre less its rounding allowance,
+    // and the centre's distance less √3/2), the plane's unit normal, the triangle index; then a
+    // voxel's bounds and the triangles they leave to evaluate, nearest bound first.
+    std::vector<float> btPlane, btBall, btX, btY, btZ, btLb;
+    std::vector<uint32_t> btId, btCluster; // the triangle, the cluster that listed it
+    size_t btCount = 0; // entries in use
+    uint32_t btLanes = 0; // triangles a block found but did not list (clusters only)
+    bool btClustersOnly = false; // the block lists clusters only
+    // where triangles are split into pieces (several clusters hold them): per triangle, the
+    // block that listed it last (a block lists a triangle once)
+    std::vector<uint32_t> btSeen;
+    // The same block's clusters (key: their smallest bound at the centre) and their boxes (6 SoA
+    // arrays of blockStride floats relative to the centre), for blocks listing too many triangles
+    std::vector<std::pair<float, uint32_t>> blockList;
+    std::vector<float> blockBox, blockD2;
     size_t blockStride = 0;
-    std::vector<float> blockD2;                        // a voxel's squared distances to them
+    uint32_t btBlock = 0;
+    void growBlockTriangles(size_t n)
+    {
+        n = std::max(n, 2 * btId.size());
+        for (auto* a : {&btPlane, &btBall, &btX, &btY, &btZ, &btLb}) a->resize(n);
+        btId.resize(n);
+        btCluster.resize(n);
+    }
+    std::vector<std::pair<float, uint32_t>> btCand;
     struct WorkPoller* poller = nullptr; // polls the interrupter by work done (null: none)
     uint64_t reported = 0;               // evaluations already handed to the poller
     // Winding / unsigned: the leaf's voxels before their sign is known (distance in voxels, -1
@@ -121,11 +145,34 @@ struct Scratch
 };
 
 /// The pseudonormal of feature f of triangle t, through the scratch's cache: the same vector
-/// bit for bit as LazyPseudoNormals::normal().
-inline const Vec3d& cachedNormal(const LazyPseudoNormals& normals, Scratch& s, uint32_t t, TriangleFeature f)
+/// bit for bit as LazyPseudoNormals::normal(). Keyed by what the normal depends on — the vertex
+/// for a vertex, the two end points for an edge, the triangle for a face — so that the triangles
+/// of a fan share one entry (a voxel beyond a convex vertex may find any of them closest).
+inline const Vec3d& cachedNormal(const LazyPseudoNormals& normals, Scratch& s, const TriangleMesh& mesh, uint32_t t,
+                                 TriangleFeature f)
 {
-    const uint64_t key = uint64_t(t) * 8u + uint64_t(f);
-    Scratch::CachedNormal& e = s.normalCache[(key * 0x9E3779B97F4A7C15ull) >> 56];
+    const Vec3I& tri = mesh.triangles[t];
+    uint64_t key;
+    switch (f) {
+    case TriangleFeature::Vertex0: key = (uint64_t(uint32_t(tri[0])) << 2) | 1u; break;
+    case TriangleFeature::Vertex1: key = (uint64_t(uint32_t(tri[1])) << 2) | 1u; break;
+    case TriangleFeature::Vertex2: key = (uint64_t(uint32_t(tri[2])) << 2) | 1u; break;
+    case TriangleFeature::Edge01:
+    case TriangleFeature::Edge12:
+    case TriangleFeature::Edge20: {
+        if (normals.isDegenerate(t)) { // its edges have no normal (zero): keyed by the triangle
+            key = (uint64_t(t) << 2) | 3u;
+            break;
+        }
+        const int k = f == TriangleFeature::Edge01 ? 0 : (f == TriangleFeature::Edge12 ? 1 : 2);
+        const uint64_t a = uint32_t(tri[k]), b = uint32_t(tri[(k + 1) % 3]);
+        // both end points in 62 bits: exact for meshes of up to 2^31 points
+        key = (((std::min(a, b) << 31) | std::max(a, b)) << 2) | 2u;
+        break;
+    }
+    default: key = uint64_t(t) << 2; break;
+    }
+    Scratch::CachedNormal& e = s.normalCache[(key * 0x9E3779B97F4A7C15ull) >> (64 - Scratch::kNormalCacheBits)];
     if (e.key != key) {
         e.key = key;
         e.n = normals.normal(t, f);

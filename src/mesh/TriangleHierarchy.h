@@ -105,6 +105,14 @@ inline double boxBoxDistanceSqr(const HierarchyNode& n, const Vec3d& lo, const V
 /// On x86-64 CPUs with AVX2 an AVX2 build runs (the same operations, 8 lanes at once, no FMA:
 /// bit-identical bounds).
 uint32_t clusterBounds(const TriangleCluster& c, float qx, float qy, float qz, float bm2, float* lb2);
+/// clusterBounds() that also gives, per lane, the vector from the closest point of the lane's
+/// triangle, as the single-precision arithmetic finds it, to q: pd·n (n the unit normal, pd the
+/// signed plane distance) where q projects inside the triangle, q − the nearest edge point
+/// otherwise, so that g / sqrt(lb2) is the unit normal of a plane separating q from the triangle.
+/// The same lb2 and mask as clusterBounds(); g only for the lanes of the mask. AVX2 where the
+/// CPU has it, scalar otherwise (g may then differ in the last bits; lb2 does not).
+uint32_t clusterBoundsDirections(const TriangleCluster& c, float qx, float qy, float qz, float bm2, float* lb2,
+                                 float* gx, float* gy, float* gz);
 /// The SSE2 (or scalar) build of clusterBounds(), for the twin test.
 uint32_t clusterBoundsBaseline(const TriangleCluster& c, float qx, float qy, float qz, float bm2, float* lb2);
 /// Whether clusterBounds() can use its AVX2 build on this CPU.

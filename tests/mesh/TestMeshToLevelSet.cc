@@ -345,6 +345,40 @@ TEST(MeshToLevelSet, ShapesOffTheSweetSpotAreExact)
     }
 }
 
+// Wide bands go by 2×2×2 blocks whose voxels bound every listed triangle by its separating plane
+// at the block centre (computeLeaf()): exact off the sweet spot too — slivers, a fan of 1200
+// triangles around one vertex (every voxel beyond it ties them), needles split into pieces,
+// triangles far longer than a leaf, a coarse sphere whose far voxels lie in vertex regions —
+// and the same grid for one thread as for all.
+TEST(MeshToLevelSet, WideBandsAreExactOffTheSweetSpot)
+{
+    MeshToLevelSetOptions opt;
+    opt.exteriorWidth = 16.0f;
+    opt.interiorWidth = 12.0f;
+    opt.voxelCount = 40;
+    expectExact(makeSliverSphere(600, 4, 1.0), opt, "sliver sphere, band 16");
+    opt.voxelCount = 32;
+    expectExact(makeVertexFan(1200, 1.0, 0.6), opt, "vertex fan, band 16");
+    opt.voxelCount = 0;
+    opt.voxelSize = 0.02;
+    expectExact(makeNeedle(3.0, 0.001), opt, "needle, band 16");
+    opt.voxelSize = 0.0;
+    opt.voxelCount = 48;
+    expectExact(makeBox(Vec3d(-1.0), Vec3d(1.0)), opt, "box of 12 triangles, band 16");
+    opt.exteriorWidth = opt.interiorWidth = 20.0f;
+    opt.voxelCount = 40;
+    const TriangleMesh coarse = makeIcosphere(Vec3d(0.1, 0.2, 0.3), 1.0, 1);
+    expectExact(coarse, opt, "80-triangle sphere, band 20");
+    MeshToLevelSetStats stats;
+    auto all = meshToLevelSet(coarse, opt, &stats);
+    EXPECT_LT(stats.leafPasses, stats.candidateLeaves) << "the block search should run";
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    auto single = meshToLevelSet(coarse, opt);
+    ASSERT_EQ(all->activeVoxelCount(), single->activeVoxelCount());
+    for (auto it = all->cbeginValueOn(); it; ++it)
+        ASSERT_EQ(single->tree().getValue(it.getCoord()), *it) << it.getCoord();
+}
+
 TEST(MeshToLevelSet, VoxelBudgetCountsTheDilatedSurface)
 {
     // a band of 1000 voxels around a sphere of 256: ~10^10 voxels, refused before allocating
