@@ -4,6 +4,7 @@
 
 #include "detail/IsoSurfaceCells.h"
 #include "detail/Timer.h"
+#include "detail/UninitialisedAllocator.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/TriangleDistance.h>
@@ -26,6 +27,10 @@ using iso_surface_internal::Tri;
 using iso_surface_internal::cellTriangles;
 
 using detail::Clock;
+/// The shell's triangles, written in parallel right after they are allocated: not zeroed first
+/// (2.7 M triangles, 194 MB, for a 181 × 217 × 181 brain: 10 % of a conversion zeroed on one
+/// thread).
+using TriVector = std::vector<Tri, detail::UninitialisedAllocator<Tri>>;
 
 void checkVolume(const ScalarVolume& f)
 {
@@ -108,7 +113,7 @@ public:
         stats.triangles = total;
     }
 
-    const std::vector<Tri>& triangles() const { return mTris; }
+    const TriVector& triangles() const { return mTris; }
 
     /// Exact closest point of the surface to voxel (i, j, k): first the 8 cells that share the
     /// sample as a corner (they hold every point closer than the smallest spacing), then cells
@@ -218,7 +223,7 @@ private:
     MaskVolume mInside;
     openvdb::Coord mCellDims{0, 0, 0};
     std::vector<uint64_t> mCellBegin;
-    std::vector<Tri> mTris;
+    TriVector mTris;
 };
 
 } // namespace
