@@ -28,51 +28,13 @@ namespace {
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define LEVELFORGE_CLUSTER_AVX2 1
 /// clusterBounds() for AVX2: the same operations in the same order as the SSE2 build, 8 lanes per
-/// instruction, no FMA, so every bound has the same bits (only the speed differs).
+/// instruction, no FMA, so every bound has the same bits (only the speed differs). With
+/// `kDirections`, also the vector to q from each lane's closest point (clusterBoundsDirections()):
+/// the argmin of the edge segments, pd·n inside; the bounds are the same operations either way.
 #define LF_ROW(f) _mm256_loadu_ps(c.F[f])
-__attribute__((target("avx2"))) uint32_t clusterBoundsAvx2(const TriangleCluster& c, float qx, float qy, float qz,
-                                                         float bm2, float* lb2)
-{
-    const __m256 Q[3] = {_mm256_set1_ps(qx), _mm256_set1_ps(qy), _mm256_set1_ps(qz)};
-    const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f), B = _mm256_set1_ps(bm2);
-    const __m256 n[3] = {LF_ROW(0), LF_ROW(1), LF_ROW(2)};
-    const __m256 pd = _mm256_sub_ps(
-        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(n[0], Q[0]), _mm256_mul_ps(n[1], Q[1])), _mm256_mul_ps(n[2], Q[2])), LF_ROW(3));
-    const __m256 pd2 = _mm256_mul_ps(pd, pd);
-    const int near = _mm256_movemask_ps(_mm256_cmp_ps(pd2, B, _CMP_LT_OQ));
-    if (near == 0) {
-        _mm256_storeu_ps(lb2, pd2);
-        return 0;
-    }
-    __m256 outside = zero;
-    __m256 seg = _mm256_set1_ps(3.0e38f);
-    for (int k = 0; k < 3; ++k) {
-        const int a = 4 + 3 * k, b = 4 + 3 * ((k + 1) % 3);
-        const __m256 e[3] = {_mm256_sub_ps(LF_ROW(b), LF_ROW(a)), _mm256_sub_ps(LF_ROW(b + 1), LF_ROW(a + 1)), _mm256_sub_ps(LF_ROW(b + 2), LF_ROW(a + 2))};
-        const __m256 d[3] = {_mm256_sub_ps(Q[0], LF_ROW(a)), _mm256_sub_ps(Q[1], LF_ROW(a + 1)), _mm256_sub_ps(Q[2], LF_ROW(a + 2))};
-        const __m256 mx = _mm256_sub_ps(_mm256_mul_ps(e[1], n[2]), _mm256_mul_ps(e[2], n[1]));
-        const __m256 my = _mm256_sub_ps(_mm256_mul_ps(e[2], n[0]), _mm256_mul_ps(e[0], n[2]));
-        const __m256 mz = _mm256_sub_ps(_mm256_mul_ps(e[0], n[1]), _mm256_mul_ps(e[1], n[0]));
-        const __m256 side = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(mx, d[0]), _mm256_mul_ps(my, d[1])), _mm256_mul_ps(mz, d[2]));
-        outside = _mm256_or_ps(outside, _mm256_cmp_ps(side, zero, _CMP_GT_OQ));
-        __m256 t = _mm256_mul_ps(_mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(d[0], e[0]), _mm256_mul_ps(d[1], e[1])), _mm256_mul_ps(d[2], e[2])), LF_ROW(13 + k));
-        t = _mm256_min_ps(_mm256_max_ps(t, zero), one);
-        const __m256 rx = _mm256_sub_ps(d[0], _mm256_mul_ps(t, e[0])), ry = _mm256_sub_ps(d[1], _mm256_mul_ps(t, e[1])),
-                     rz = _mm256_sub_ps(d[2], _mm256_mul_ps(t, e[2]));
-        seg = _mm256_min_ps(seg, _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(rx, rx), _mm256_mul_ps(ry, ry)), _mm256_mul_ps(rz, rz)));
-    }
-    __m256 l = _mm256_or_ps(_mm256_andnot_ps(outside, pd2), _mm256_and_ps(outside, seg));
-    // the baseline keeps the plane distance of a group of 4 lanes that it rules out entirely
-    if ((near & 0x0F) == 0) l = _mm256_blend_ps(l, pd2, 0x0F);
-    if ((near & 0xF0) == 0) l = _mm256_blend_ps(l, pd2, 0xF0);
-    _mm256_storeu_ps(lb2, l);
-    return uint32_t(_mm256_movemask_ps(_mm256_cmp_ps(l, B, _CMP_LT_OQ)));
-}
-
-/// clusterBoundsAvx2() that also keeps, per lane, the vector to q from the closest point: the
-/// same operations for lb2, plus the argmin of the edge segments.
-__attribute__((target("avx2"))) uint32_t clusterBoundsDirectionsAvx2(const TriangleCluster& c, float qx, float qy, float qz,
-                                                                   float bm2, float* lb2, float* gx, float* gy, float* gz)
+template<bool kDirections>
+__attribute__((target("avx2"))) inline uint32_t clusterBoundsAvx2Impl(const TriangleCluster& c, float qx, float qy, float qz,
+                                                                    float bm2, float* lb2, float* gx, float* gy, float* gz)
 {
     const __m256 Q[3] = {_mm256_set1_ps(qx), _mm256_set1_ps(qy), _mm256_set1_ps(qz)};
     const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f), B = _mm256_set1_ps(bm2);
@@ -102,23 +64,64 @@ __attribute__((target("avx2"))) uint32_t clusterBoundsDirectionsAvx2(const Trian
         const __m256 rx = _mm256_sub_ps(d[0], _mm256_mul_ps(t, e[0])), ry = _mm256_sub_ps(d[1], _mm256_mul_ps(t, e[1])),
                      rz = _mm256_sub_ps(d[2], _mm256_mul_ps(t, e[2]));
         const __m256 r2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(rx, rx), _mm256_mul_ps(ry, ry)), _mm256_mul_ps(rz, rz));
-        const __m256 closer = _mm256_cmp_ps(r2, seg, _CMP_LT_OQ);
-        sx = _mm256_blendv_ps(sx, rx, closer);
-        sy = _mm256_blendv_ps(sy, ry, closer);
-        sz = _mm256_blendv_ps(sz, rz, closer);
+        if constexpr (kDirections) {
+            const __m256 closer = _mm256_cmp_ps(r2, seg, _CMP_LT_OQ);
+            sx = _mm256_blendv_ps(sx, rx, closer);
+            sy = _mm256_blendv_ps(sy, ry, closer);
+            sz = _mm256_blendv_ps(sz, rz, closer);
+        }
         seg = _mm256_min_ps(seg, r2);
     }
     __m256 l = _mm256_or_ps(_mm256_andnot_ps(outside, pd2), _mm256_and_ps(outside, seg));
+    // the baseline keeps the plane distance of a group of 4 lanes that it rules out entirely
     if ((near & 0x0F) == 0) l = _mm256_blend_ps(l, pd2, 0x0F);
     if ((near & 0xF0) == 0) l = _mm256_blend_ps(l, pd2, 0xF0);
     _mm256_storeu_ps(lb2, l);
-    _mm256_storeu_ps(gx, _mm256_blendv_ps(_mm256_mul_ps(pd, n[0]), sx, outside));
-    _mm256_storeu_ps(gy, _mm256_blendv_ps(_mm256_mul_ps(pd, n[1]), sy, outside));
-    _mm256_storeu_ps(gz, _mm256_blendv_ps(_mm256_mul_ps(pd, n[2]), sz, outside));
+    if constexpr (kDirections) {
+        _mm256_storeu_ps(gx, _mm256_blendv_ps(_mm256_mul_ps(pd, n[0]), sx, outside));
+        _mm256_storeu_ps(gy, _mm256_blendv_ps(_mm256_mul_ps(pd, n[1]), sy, outside));
+        _mm256_storeu_ps(gz, _mm256_blendv_ps(_mm256_mul_ps(pd, n[2]), sz, outside));
+    }
     return uint32_t(_mm256_movemask_ps(_mm256_cmp_ps(l, B, _CMP_LT_OQ)));
+}
+
+__attribute__((target("avx2"))) uint32_t clusterBoundsAvx2(const TriangleCluster& c, float qx, float qy, float qz, float bm2,
+                                                         float* lb2)
+{
+    return clusterBoundsAvx2Impl<false>(c, qx, qy, qz, bm2, lb2, nullptr, nullptr, nullptr);
+}
+
+__attribute__((target("avx2"))) uint32_t clusterBoundsDirectionsAvx2(const TriangleCluster& c, float qx, float qy, float qz,
+                                                                   float bm2, float* lb2, float* gx, float* gy, float* gz)
+{
+    return clusterBoundsAvx2Impl<true>(c, qx, qy, qz, bm2, lb2, gx, gy, gz);
 }
 #undef LF_ROW
 #endif
+/// One lane of the scalar kernel (the SSE2 build's operations, one lane at a time): its squared
+/// distance bound, and where g is given, the vector to q from the closest point (pd·n inside).
+inline float scalarLaneBound(const TriangleCluster& c, uint32_t i, const float q[3], float* g)
+{
+    const float n[3] = {c.F[0][i], c.F[1][i], c.F[2][i]};
+    const float pd = n[0] * q[0] + n[1] * q[1] + n[2] * q[2] - c.F[3][i];
+    bool outside = false;
+    float seg = 3.0e38f, s[3] = {0.0f, 0.0f, 0.0f};
+    for (int k = 0; k < 3; ++k) {
+        const int a = 4 + 3 * k, b = 4 + 3 * ((k + 1) % 3);
+        float e[3], d[3];
+        for (int j = 0; j < 3; ++j) { e[j] = c.F[b + j][i] - c.F[a + j][i]; d[j] = q[j] - c.F[a + j][i]; }
+        const float side = (e[1] * n[2] - e[2] * n[1]) * d[0] + (e[2] * n[0] - e[0] * n[2]) * d[1] + (e[0] * n[1] - e[1] * n[0]) * d[2];
+        if (side > 0.0f) outside = true;
+        const float t = std::min(std::max((d[0] * e[0] + d[1] * e[1] + d[2] * e[2]) * c.F[13 + k][i], 0.0f), 1.0f);
+        float r[3], r2 = 0.0f;
+        for (int j = 0; j < 3; ++j) { r[j] = d[j] - t * e[j]; r2 += r[j] * r[j]; }
+        if (r2 < seg) { seg = r2; s[0] = r[0]; s[1] = r[1]; s[2] = r[2]; }
+    }
+    if (g)
+        for (int j = 0; j < 3; ++j) g[j] = outside ? s[j] : pd * n[j];
+    return outside ? seg : pd * pd;
+}
+
 } // namespace
 
 uint32_t clusterBoundsDirections(const TriangleCluster& c, float qx, float qy, float qz, float bm2, float* lb2, float* gx,
@@ -131,25 +134,12 @@ uint32_t clusterBoundsDirections(const TriangleCluster& c, float qx, float qy, f
     const uint32_t mask = clusterBoundsBaseline(c, qx, qy, qz, bm2, lb2);
     const float q[3] = {qx, qy, qz};
     for (uint32_t m = mask; m; m &= m - 1) {
-        const int i = __builtin_ctz(m);
-        const float n[3] = {c.F[0][i], c.F[1][i], c.F[2][i]};
-        const float pd = n[0] * qx + n[1] * qy + n[2] * qz - c.F[3][i];
-        bool outside = false;
-        float seg = 3.0e38f, s[3] = {0.0f, 0.0f, 0.0f};
-        for (int k = 0; k < 3; ++k) {
-            const int a = 4 + 3 * k, b = 4 + 3 * ((k + 1) % 3);
-            float e[3], d[3];
-            for (int j = 0; j < 3; ++j) { e[j] = c.F[b + j][i] - c.F[a + j][i]; d[j] = q[j] - c.F[a + j][i]; }
-            const float side = (e[1] * n[2] - e[2] * n[1]) * d[0] + (e[2] * n[0] - e[0] * n[2]) * d[1] + (e[0] * n[1] - e[1] * n[0]) * d[2];
-            if (side > 0.0f) outside = true;
-            const float t = std::min(std::max((d[0] * e[0] + d[1] * e[1] + d[2] * e[2]) * c.F[13 + k][i], 0.0f), 1.0f);
-            float r[3], r2 = 0.0f;
-            for (int j = 0; j < 3; ++j) { r[j] = d[j] - t * e[j]; r2 += r[j] * r[j]; }
-            if (r2 < seg) { seg = r2; s[0] = r[0]; s[1] = r[1]; s[2] = r[2]; }
-        }
-        gx[i] = outside ? s[0] : pd * n[0];
-        gy[i] = outside ? s[1] : pd * n[1];
-        gz[i] = outside ? s[2] : pd * n[2];
+        const uint32_t i = uint32_t(__builtin_ctz(m));
+        float g[3];
+        scalarLaneBound(c, i, q, g);
+        gx[i] = g[0];
+        gy[i] = g[1];
+        gz[i] = g[2];
     }
     return mask;
 }
@@ -216,22 +206,7 @@ uint32_t clusterBoundsBaseline(const TriangleCluster& c, float qx, float qy, flo
 #else
     const float q[3] = {qx, qy, qz};
     for (uint32_t i = 0; i < kClusterSize; ++i) {
-        const float n[3] = {c.F[0][i], c.F[1][i], c.F[2][i]};
-        const float pd = n[0] * qx + n[1] * qy + n[2] * qz - c.F[3][i];
-        bool outside = false;
-        float seg = 3.0e38f;
-        for (int k = 0; k < 3; ++k) {
-            const int a = 4 + 3 * k, b = 4 + 3 * ((k + 1) % 3);
-            float e[3], d[3];
-            for (int j = 0; j < 3; ++j) { e[j] = c.F[b + j][i] - c.F[a + j][i]; d[j] = q[j] - c.F[a + j][i]; }
-            const float side = (e[1] * n[2] - e[2] * n[1]) * d[0] + (e[2] * n[0] - e[0] * n[2]) * d[1] + (e[0] * n[1] - e[1] * n[0]) * d[2];
-            if (side > 0.0f) outside = true;
-            const float t = std::min(std::max((d[0] * e[0] + d[1] * e[1] + d[2] * e[2]) * c.F[13 + k][i], 0.0f), 1.0f);
-            float r2 = 0.0f;
-            for (int j = 0; j < 3; ++j) { const float r = d[j] - t * e[j]; r2 += r * r; }
-            seg = std::min(seg, r2);
-        }
-        lb2[i] = outside ? seg : pd * pd;
+        lb2[i] = scalarLaneBound(c, i, q, nullptr);
         if (lb2[i] < bm2) mask |= 1u << i;
     }
 #endif
