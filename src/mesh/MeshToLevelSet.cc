@@ -92,21 +92,18 @@ __attribute__((always_inline)) inline void visitCluster(const Context& ctx, uint
     if (v.listing && s.btCount <= kMaxListed && !s.btClustersOnly) {
         alignas(32) float g[3][kClusterSize];
         mask = clusterBoundsDirections(c, float(q[0]), float(q[1]), float(q[2]), v.bm2f, lb2, g[0], g[1], g[2]);
-        if (mask) {
-            float lo = lb2[__builtin_ctz(mask)];
-            for (uint32_t m = mask; m; m &= m - 1) lo = std::min(lo, lb2[__builtin_ctz(m)]);
-            s.blockList.emplace_back(std::sqrt(lo), ci);
-            listTriangles(c, ci, mask, lb2, g, v.tauK, v.tauR, s);
-        }
+        listTriangles(c, ci, mask, lb2, g, v.tauK, v.tauR, s);
     } else {
         mask = clusterBounds(c, float(q[0]), float(q[1]), float(q[2]), v.bm2f, lb2);
         if (v.listing && mask) { // a block with too many triangles to list: its clusters only
-            float lo = lb2[__builtin_ctz(mask)];
-            for (uint32_t m = mask; m; m &= m - 1) lo = std::min(lo, lb2[__builtin_ctz(m)]);
-            s.blockList.emplace_back(std::sqrt(lo), ci);
             s.btLanes += uint32_t(__builtin_popcount(mask));
             if (s.btCount <= kMaxListed) s.btCount = kMaxListed + 1;
         }
+    }
+    if (v.listing && mask) { // the block's clusters, keyed by their smallest bound
+        float lo = lb2[__builtin_ctz(mask)];
+        for (uint32_t m = mask; m; m &= m - 1) lo = std::min(lo, lb2[__builtin_ctz(m)]);
+        s.blockList.emplace_back(std::sqrt(lo), ci);
     }
     while (mask) {
         uint32_t pick = uint32_t(__builtin_ctz(mask));
