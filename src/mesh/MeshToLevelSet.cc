@@ -437,10 +437,21 @@ private:
                            openvdb::MaskTree& mask) const
     {
         const double r = mCtx.limit + mCtx.margin;
+        const openvdb::Coord dim = block.dim();
+        if (mBlock == 1 && block.volume() <= 8) {
+            // a few leaves: each one's test, without the halving's tests of the blocks above
+            // them (a leaf's dilated box lies inside theirs: it meets the triangle only if they do)
+            for (auto it = block.begin(); it; ++it) {
+                const openvdb::Coord& l = *it;
+                const Vec3d lo(l.x() * 8.0 + 0.5 - r, l.y() * 8.0 + 0.5 - r, l.z() * 8.0 + 0.5 - r);
+                const Vec3d hi(l.x() * 8.0 + 7.5 + r, l.y() * 8.0 + 7.5 + r, l.z() * 8.0 + 7.5 + r);
+                if (triangleBoxOverlap((lo + hi) * 0.5, (hi - lo) * 0.5, a, b, c, 1e-6)) mask.setValueOn(l);
+            }
+            return;
+        }
         const Vec3d lo(block.min().x() * 8.0 + 0.5 - r, block.min().y() * 8.0 + 0.5 - r, block.min().z() * 8.0 + 0.5 - r);
         const Vec3d hi(block.max().x() * 8.0 + 7.5 + r, block.max().y() * 8.0 + 7.5 + r, block.max().z() * 8.0 + 7.5 + r);
         if (!triangleBoxOverlap((lo + hi) * 0.5, (hi - lo) * 0.5, a, b, c, 1e-6)) return;
-        const openvdb::Coord dim = block.dim();
         int axis = 0;
         for (int k = 1; k < 3; ++k)
             if (dim[k] > dim[axis]) axis = k;
