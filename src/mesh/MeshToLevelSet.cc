@@ -309,7 +309,7 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
                     const float dx = float(vx & 1) - 0.5f, dy = float(vy & 1) - 0.5f, dz = float(vz & 1) - 0.5f;
                     const size_t first = blockTriangleBounds(s, padded, dx, dy, dz, s.btLb.data());
                     s.boundTests += listed;
-                    evaluate(ctx, v, s.btId[first], s);
+                    if (listed != 0) evaluate(ctx, v, s.btId[first], s); // (a block that found a triangle lists it)
                     selectBelow(s.btLb.data(), padded, std::nextafter(float(std::sqrt(v.best2) + ctx.margin), 3.0e38f), s.btCand);
                     if (s.btCand.size() <= kDirectCandidates) {
                         for (const auto& [bound, i] : s.btCand) {
