@@ -5,6 +5,7 @@
 #include "detail/VoxelBudget.h"
 #include "detail/Timer.h"
 #include "mesh/MeshToLevelSetInternal.h"
+#include "mesh/PreparedTriangleBox.h"
 #include "mesh/SearchLists.h"
 #include "mesh/WindingSignInternal.h"
 
@@ -428,12 +429,12 @@ public:
                 hi[k] = std::min(std::max({a[k], b[k], cc[k]}), n.hi[k]);
                 empty = empty || lo[k] > hi[k];
             }
-            if (!empty) rasterizeTriangle(a, b, cc, leafRange(lo, hi), mask);
+            if (!empty) rasterizeTriangle(mesh_internal::PreparedTriangleBox(a, b, cc, 1e-6), leafRange(lo, hi), mask);
         }
     }
 
 private:
-    void rasterizeTriangle(const Vec3d& a, const Vec3d& b, const Vec3d& c, const openvdb::CoordBBox& block,
+    void rasterizeTriangle(const mesh_internal::PreparedTriangleBox& tri, const openvdb::CoordBBox& block,
                            openvdb::MaskTree& mask) const
     {
         const double r = mCtx.limit + mCtx.margin;
@@ -445,13 +446,17 @@ private:
                 const openvdb::Coord& l = *it;
                 const Vec3d lo(l.x() * 8.0 + 0.5 - r, l.y() * 8.0 + 0.5 - r, l.z() * 8.0 + 0.5 - r);
                 const Vec3d hi(l.x() * 8.0 + 7.5 + r, l.y() * 8.0 + 7.5 + r, l.z() * 8.0 + 7.5 + r);
-                if (triangleBoxOverlap((lo + hi) * 0.5, (hi - lo) * 0.5, a, b, c, 1e-6)) mask.setValueOn(l);
+                if (tri.overlaps((lo + hi) * 0.5, (hi - lo) * 0.5)) mask.setValueOn(l);
             }
+            return;
+        }
+        if (mBlock == 1) {
+            columns(tri, block, mask);
             return;
         }
         const Vec3d lo(block.min().x() * 8.0 + 0.5 - r, block.min().y() * 8.0 + 0.5 - r, block.min().z() * 8.0 + 0.5 - r);
         const Vec3d hi(block.max().x() * 8.0 + 7.5 + r, block.max().y() * 8.0 + 7.5 + r, block.max().z() * 8.0 + 7.5 + r);
-        if (!triangleBoxOverlap((lo + hi) * 0.5, (hi - lo) * 0.5, a, b, c, 1e-6)) return;
+        if (!tri.overlaps((lo + hi) * 0.5, (hi - lo) * 0.5)) return;
         int axis = 0;
         for (int k = 1; k < 3; ++k)
             if (dim[k] > dim[axis]) axis = k;
@@ -460,8 +465,59 @@ private:
         const int mid = block.min()[axis] + dim[axis] / 2;
         l.max()[axis] = mid - 1;
         h.min()[axis] = mid;
-        rasterizeTriangle(a, b, c, l, mask);
-        rasterizeTriangle(a, b, c, h, mask);
+        rasterizeTriangle(tri, l, mask);
+        rasterizeTriangle(tri, h, mask);
+    }
+
+    /// A block of more than 8 single leaves: column by column along the normal's dominant axis
+    /// w, the leaves whose dilated boxes the triangle's plane crosses (an interval of w from the
+    /// plane's extremes over the column's dilated cross-section, widened for rounding), each
+    /// then tested on every axis. The same leaves as testing every leaf of the block, in time
+    /// proportional to the block's cross-section plus the leaves near the plane (a recursive
+    /// halving tests up to 13 axes at every level above each leaf).
+    void columns(const mesh_internal::PreparedTriangleBox& tri, const openvdb::CoordBBox& block, openvdb::MaskTree& mask) const
+    {
+        const double r = mCtx.limit + mCtx.margin;
+        const Vec3d& n = tri.normal();
+        int w = 0;
+        for (int k = 1; k < 3; ++k)
+            if (std::abs(n[k]) > std::abs(n[w])) w = k;
+        const int u = (w + 1) % 3, v = (w + 2) % 3;
+        const Vec3d half(4.0 + r - 0.5);
+        auto test = [&](const openvdb::Coord& l) {
+            const Vec3d centre(l.x() * 8.0 + 4.0, l.y() * 8.0 + 4.0, l.z() * 8.0 + 4.0);
+            if (tri.overlaps(centre, half)) mask.setValueOn(l);
+        };
+        if (n[w] == 0.0) { // degenerate: every leaf of the block
+            for (auto it = block.begin(); it; ++it) test(*it);
+            return;
+        }
+        const Vec3d& o = tri.origin();
+        const double pd = n.dot(o);
+        openvdb::Coord l;
+        for (int iu = block.min()[u]; iu <= block.max()[u]; ++iu)
+            for (int iv = block.min()[v]; iv <= block.max()[v]; ++iv) {
+                // w of the plane over the column's dilated cross-section: extremes at its corners
+                double wlo = std::numeric_limits<double>::max(), whi = -wlo;
+                for (int cu = 0; cu < 2; ++cu)
+                    for (int cv = 0; cv < 2; ++cv) {
+                        const double xu = iu * 8.0 + (cu ? 7.5 + r : 0.5 - r), xv = iv * 8.0 + (cv ? 7.5 + r : 0.5 - r);
+                        const double x = (pd - n[u] * xu - n[v] * xv) / n[w];
+                        wlo = std::min(wlo, x);
+                        whi = std::max(whi, x);
+                    }
+                const double pad = 1e-6 * (std::abs(wlo) + std::abs(whi) + 1.0);
+                // (clamped in double: no conversion of an out-of-range value)
+                const double lo = double(block.min()[w]), hi = double(block.max()[w]);
+                const int w0 = int(std::clamp(std::ceil((wlo - pad - 7.5 - r) / 8.0), lo, hi + 1.0));
+                const int w1 = int(std::clamp(std::floor((whi + pad - 0.5 + r) / 8.0), lo - 1.0, hi));
+                l[u] = iu;
+                l[v] = iv;
+                for (int iw = w0; iw <= w1; ++iw) {
+                    l[w] = iw;
+                    test(l);
+                }
+            }
     }
 
     const Context& mCtx;

@@ -379,6 +379,38 @@ TEST(MeshToLevelSet, WideBandsAreExactOffTheSweetSpot)
         ASSERT_EQ(single->tree().getValue(it.getCoord()), *it) << it.getCoord();
 }
 
+// Triangles many leaves across (a tilted box and a tetrahedron at 160 voxels: each face spans
+// up to 20 leaves) go through the candidate-leaf step's column scan (CandidateLeaves::columns():
+// the leaves whose dilated boxes the plane crosses, column by column along the normal's
+// dominant axis, each then tested on every separating axis). A leaf it missed would lose its
+// voxels (missing against the reference); every orientation of the dominant axis is covered by
+// the rotations, at band 3 and 10 (both mark single leaves).
+TEST(MeshToLevelSet, CandidateLeavesOfLargeTrianglesAreComplete)
+{
+    auto rotated = [](TriangleMesh m, double ax, double ay) {
+        for (Vec3d& p : m.points) {
+            const Vec3d q(p[0], p[1] * std::cos(ax) - p[2] * std::sin(ax), p[1] * std::sin(ax) + p[2] * std::cos(ax));
+            p = Vec3d(q[0] * std::cos(ay) + q[2] * std::sin(ay), q[1], -q[0] * std::sin(ay) + q[2] * std::cos(ay));
+        }
+        return m;
+    };
+    TriangleMesh tet;
+    tet.points = {Vec3d(0.9, 0.1, -0.2), Vec3d(-0.7, 0.8, 0.05), Vec3d(-0.6, -0.9, 0.3), Vec3d(0.05, 0.02, 1.1)};
+    tet.triangles = {Vec3I(0, 2, 1), Vec3I(0, 1, 3), Vec3I(1, 2, 3), Vec3I(0, 3, 2)};
+    tet.source = "tetrahedron";
+    const TriangleMesh shapes[] = {rotated(makeBox(Vec3d(-1.0, -0.7, -0.4), Vec3d(1.0, 0.6, 0.5)), 0.37, 0.81),
+                                   rotated(makeBox(Vec3d(-1.0, -0.7, -0.4), Vec3d(1.0, 0.6, 0.5)), 1.21, -0.44), tet};
+    for (float band : {3.0f, 10.0f}) {
+        MeshToLevelSetOptions opt;
+        opt.voxelCount = 160;
+        opt.exteriorWidth = opt.interiorWidth = band;
+        for (const TriangleMesh& m : shapes) {
+            SCOPED_TRACE(m.source + ", band " + std::to_string(band));
+            expectExact(m, opt, "large triangles");
+        }
+    }
+}
+
 TEST(MeshToLevelSet, VoxelBudgetCountsTheDilatedSurface)
 {
     // a band of 1000 voxels around a sphere of 256: ~10^10 voxels, refused before allocating
