@@ -4,6 +4,7 @@
 // MpiDistributedMeshToSdf.cc (NoMpi.cc without MPI).
 #include "mesh/MeshToLevelSetInternal.h"
 #include "mesh/WindingSignInternal.h"
+#include "distributed/BrickUnion.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/core/MeshValidation.h>
@@ -232,71 +233,121 @@ openvdb::FloatGrid::Ptr meshToSdfBricks(const TriangleMesh& mesh, const MeshToSd
     return grid;
 }
 
-openvdb::FloatGrid::Ptr finishBrickUnion(const TriangleMesh& mesh, const MeshToSdfOptions& o,
-                                         std::vector<openvdb::FloatGrid::Ptr>& parts, MeshToSdfStats* statsOut)
+BrickFinish brickFinishFor(const TriangleMesh& mesh, const MeshToSdfOptions& o)
+{
+    BrickFinish f;
+    f.sign = checkDistributable(mesh, o);
+    const Widths w = resolveWidths(mesh, o);
+    f.voxelSize = w.h;
+    f.exteriorBandVoxels = w.exterior;
+    f.interiorBandVoxels = w.interior;
+    f.fillInterior = o.fillInterior;
+    f.gridName = o.gridName;
+    f.source = o.source.empty() ? mesh.source : o.source;
+    return f;
+}
+
+namespace distributed_internal {
+
+void BrickUnion::add(openvdb::FloatGrid& g, const std::string& what)
 {
     using FloatLeaf = openvdb::FloatTree::LeafNodeType;
-    const auto t0 = detail::Clock::now();
-    if (parts.empty() || !parts[0]) throw InvalidArgumentError("finishBrickUnion: no parts");
-    const openvdb::FloatGrid::Ptr keep = parts[0]; // parts are released as they are merged
-    const openvdb::FloatGrid& first = *keep;
-    const float bg = first.background();
-    const std::string signName = first.metaValue<std::string>(kSignMetadata);
-    const SignMode sign = signModeFromString(signName);
-    // the first part's tree is the base when it holds leaves only (a part as meshToSdfBricks() makes
-    // it: inactive background tiles): the other parts' leaves move into it
-    openvdb::FloatTree::Ptr tree;
-    size_t firstMoved = 0;
-    if (first.tree().activeTileCount() == 0) {
-        tree = keep->treePtr();
-        firstMoved = 1;
-    }
-    if (!tree) tree = std::make_shared<openvdb::FloatTree>(bg);
-    for (size_t p = firstMoved; p < parts.size(); ++p) {
-        if (!parts[p]) throw InvalidArgumentError("finishBrickUnion: part " + std::to_string(p) + " is missing");
-        openvdb::FloatGrid& g = *parts[p];
-        if (g.background() != bg || g.transform() != first.transform() ||
-            g.metaValue<std::string>(kSignMetadata) != signName)
-            throw InvalidArgumentError("finishBrickUnion: part " + std::to_string(p) +
-                                       " has another background, transform or sign than part 0");
-        std::vector<FloatLeaf*> leaves;
-        g.tree().stealNodes(leaves);
-        std::vector<std::unique_ptr<FloatLeaf>> owned(leaves.begin(), leaves.end());
-        for (auto& leaf : owned) {
-            if (tree->probeConstLeaf(leaf->origin())) {
-                std::ostringstream os;
-                os << "finishBrickUnion: two parts hold the leaf at " << leaf->origin();
-                throw InvalidArgumentError(os.str());
-            }
-            tree->addLeaf(leaf.get());
-            (void)leaf.release();
+    const auto sign = g.getMetadata<openvdb::StringMetadata>(kSignMetadata);
+    const std::string signName = sign ? sign->value() : std::string();
+    if (!mTree) {
+        if (signName != toString(mFinish.sign))
+            throw InvalidArgumentError(what + " was made with the sign '" + signName + "', not '" +
+                                       toString(mFinish.sign) + "'");
+        mFirst = what;
+        mBackground = g.background();
+        mTransform = g.transform().copy();
+        // the first part's tree is the base when it holds leaves only (a part as
+        // meshToSdfBricks() makes it: inactive background tiles): the other parts' leaves move in
+        if (g.tree().activeTileCount() == 0) {
+            mTree = g.treePtr();
+            g.setTree(std::make_shared<openvdb::FloatTree>(mBackground));
+            return;
         }
-        parts[p].reset();
+        mTree = std::make_shared<openvdb::FloatTree>(mBackground);
+    } else if (g.background() != mBackground || g.transform() != *mTransform || signName != toString(mFinish.sign)) {
+        throw InvalidArgumentError(what + " has another background, transform or sign than " + mFirst);
     }
-    if (firstMoved) parts[0].reset();
+    std::vector<FloatLeaf*> leaves;
+    g.tree().stealNodes(leaves);
+    std::vector<std::unique_ptr<FloatLeaf>> owned(leaves.begin(), leaves.end());
+    for (auto& leaf : owned) {
+        if (mTree->probeConstLeaf(leaf->origin())) {
+            std::ostringstream os;
+            os << what << " holds the leaf at " << leaf->origin() << ", which an earlier part holds too";
+            throw InvalidArgumentError(os.str());
+        }
+        mTree->addLeaf(leaf.get());
+        (void)leaf.release();
+    }
+    g.setTree(std::make_shared<openvdb::FloatTree>(mBackground));
+}
+
+uint64_t BrickUnion::leafCount() const { return mTree ? uint64_t(mTree->leafCount()) : 0; }
+
+openvdb::FloatGrid::Ptr BrickUnion::finish(MeshToSdfStats* statsOut)
+{
+    const auto t0 = detail::Clock::now();
+    if (!mTree) throw InvalidArgumentError("finishBrickUnion: no parts");
+    const BrickFinish& f = mFinish;
+    openvdb::FloatTree::Ptr tree = std::move(mTree);
     // as meshToLevelSet() finishes its tree, then as meshToSdf() stamps it
     uint64_t filled = 0;
-    if (sign == SignMode::Pseudonormal) openvdb::tools::signedFloodFill(*tree);
-    if (o.fillInterior) filled = winding_internal::activateInterior(*tree);
+    if (f.sign == SignMode::Pseudonormal) openvdb::tools::signedFloodFill(*tree);
+    if (f.fillInterior) filled = winding_internal::activateInterior(*tree);
     auto grid = openvdb::FloatGrid::create(tree);
-    grid->setTransform(first.transform().copy());
-    grid->setName(o.gridName);
-    const Widths w = resolveWidths(mesh, o);
-    stampLevelSetMetadata(*grid, w.exterior, w.interior, o.source.empty() ? mesh.source : o.source,
-                          "chang2008-exact-band");
-    if (sign == SignMode::Unsigned) grid->setGridClass(openvdb::GRID_UNKNOWN);
-    grid->insertMeta(kSignMetadata, openvdb::StringMetadata(toString(sign)));
-    if (o.fillInterior) grid->insertMeta(kFillInteriorMetadata, openvdb::BoolMetadata(true));
+    grid->setTransform(mTransform);
+    grid->setName(f.gridName);
+    stampLevelSetMetadata(*grid, f.exteriorBandVoxels, f.interiorBandVoxels, f.source, f.method);
+    if (f.sign == SignMode::Unsigned) grid->setGridClass(openvdb::GRID_UNKNOWN);
+    grid->insertMeta(kSignMetadata, openvdb::StringMetadata(toString(f.sign)));
+    if (f.fillInterior) grid->insertMeta(kFillInteriorMetadata, openvdb::BoolMetadata(true));
     if (statsOut) {
-        statsOut->sign = sign;
-        statsOut->voxelSize = w.h;
-        statsOut->exteriorBandVoxels = w.exterior;
-        statsOut->interiorBandVoxels = w.interior;
-        statsOut->method = "chang2008-exact-band";
+        statsOut->sign = f.sign;
+        statsOut->voxelSize = f.voxelSize;
+        statsOut->exteriorBandVoxels = f.exteriorBandVoxels;
+        statsOut->interiorBandVoxels = f.interiorBandVoxels;
+        statsOut->method = f.method;
         statsOut->filledVoxels = filled;
         statsOut->seconds = detail::secondsSince(t0);
     }
     return grid;
+}
+
+} // namespace distributed_internal
+
+openvdb::FloatGrid::Ptr finishBrickUnion(const BrickFinish& finish, std::vector<openvdb::FloatGrid::Ptr>& parts,
+                                         MeshToSdfStats* statsOut)
+{
+    if (parts.empty() || !parts[0]) throw InvalidArgumentError("finishBrickUnion: no parts");
+    distributed_internal::BrickUnion u(finish);
+    for (size_t p = 0; p < parts.size(); ++p) {
+        if (!parts[p]) throw InvalidArgumentError("finishBrickUnion: part " + std::to_string(p) + " is missing");
+        u.add(*parts[p], "finishBrickUnion: part " + std::to_string(p));
+        parts[p].reset(); // released as they are merged
+    }
+    return u.finish(statsOut);
+}
+
+openvdb::FloatGrid::Ptr finishBrickUnion(const TriangleMesh& mesh, const MeshToSdfOptions& o,
+                                         std::vector<openvdb::FloatGrid::Ptr>& parts, MeshToSdfStats* statsOut)
+{
+    if (parts.empty() || !parts[0]) throw InvalidArgumentError("finishBrickUnion: no parts");
+    // the sign the parts were made with (checkDistributable() resolved Auto when they were made)
+    BrickFinish f;
+    f.sign = signModeFromString(parts[0]->metaValue<std::string>(kSignMetadata));
+    const Widths w = resolveWidths(mesh, o);
+    f.voxelSize = w.h;
+    f.exteriorBandVoxels = w.exterior;
+    f.interiorBandVoxels = w.interior;
+    f.fillInterior = o.fillInterior;
+    f.gridName = o.gridName;
+    f.source = o.source.empty() ? mesh.source : o.source;
+    return finishBrickUnion(f, parts, statsOut);
 }
 
 // A part's bytes: OpenVDB's io::Stream of the one grid (uncompressed, no statistics metadata),

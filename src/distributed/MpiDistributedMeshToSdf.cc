@@ -7,11 +7,16 @@
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/distributed/DistributedMeshToSdf.h>
+#include <levelforge/io/VdbIO.h>
 
 #include <mpi.h>
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <climits>
 #include <cstdlib>
 #include <memory>
@@ -74,6 +79,15 @@ constexpr size_t kChunk = size_t(256) << 20; // bytes per message (MPI counts ar
 constexpr size_t kLeavesPerPiece = 8192;      // about 17 MiB of leaves a piece
 constexpr uint64_t kFailed = ~uint64_t(0);    // a piece header: the sender failed
 
+/// Test aid (tests/distributed/TestCliDistributedMerge.cc): LEVELFORGE_DISTRIBUTED_INJECT=piece:R
+/// fails rank R right after it wrote its piece, =manifest fails rank 0's manifest write after
+/// every piece was written; the clean-up after a late failure is tested with them.
+bool injected(const std::string& what)
+{
+    const char* v = std::getenv("LEVELFORGE_DISTRIBUTED_INJECT");
+    return v && what == v;
+}
+
 double peakMiB()
 {
     struct rusage ru {};
@@ -127,25 +141,33 @@ void runOnAllRanks(const std::function<void()>& step)
     throwKind(head[0], msg);
 }
 
-openvdb::FloatGrid::Ptr distributedMeshToSdf(const TriangleMesh& mesh, const MeshToSdfOptions& o, int brickLog2,
-                                             DistributedStats* statsOut)
-{
-    const auto t0 = detail::Clock::now();
-    const int rank = worldRank(), size = worldSize();
-    DistributedStats st;
-    st.rank = rank;
-    st.ranks = size;
-    st.brickLog2 = brickLog2;
+namespace {
 
-    // ---- the bricks: rank 0 decides, every rank gets the same list
+/// What one rank computed: the shared decomposition, its bricks and its part.
+struct RankWork
+{
     BrickDecomposition d;
+    std::vector<openvdb::CoordBBox> boxes;
+    openvdb::FloatGrid::Ptr part;
+    SignMode sign = SignMode::Pseudonormal;
+    double partSeconds = 0.0, partPeak = 0.0;
+    uint64_t partActive = 0, partTriangles = 0;
+};
+
+/// The decomposition (rank 0 decides, every rank gets the same list) and this rank's part.
+RankWork computeRankPart(const TriangleMesh& mesh, const MeshToSdfOptions& o, int brickLog2, DistributedStats& st,
+                         detail::Clock::time_point t0)
+{
+    const int rank = st.rank, size = st.ranks;
+    RankWork w;
+    BrickDecomposition& d = w.d;
     runOnAllRanks([&] {
-        const SignMode sign = checkDistributable(mesh, o);
+        w.sign = checkDistributable(mesh, o);
         if (rank != 0) return;
         const double h = resolveVoxelSize(mesh, o);
         const float ext = static_cast<float>(o.widthInVoxels(o.exteriorWidth, h));
         const float in = static_cast<float>(o.widthInVoxels(o.interiorWidth, h));
-        const double limit = sign == SignMode::Unsigned ? double(ext) : double(std::max(ext, in));
+        const double limit = w.sign == SignMode::Unsigned ? double(ext) : double(std::max(ext, in));
         d = decomposeIntoBricks(mesh, h, limit, size, brickLog2);
     });
     {
@@ -172,17 +194,55 @@ openvdb::FloatGrid::Ptr distributedMeshToSdf(const TriangleMesh& mesh, const Mes
     st.bricks = d.origins.size();
     st.secondsDecompose = detail::secondsSince(t0);
 
-    // ---- this rank's bricks (rank 0 keeps its own part as a grid)
-    const std::vector<openvdb::CoordBBox> boxes = d.boxesOf(rank);
-    openvdb::FloatGrid::Ptr part;
-    double partSeconds = 0.0, partPeak = 0.0;
+    // ---- this rank's bricks
+    w.boxes = d.boxesOf(rank);
     runOnAllRanks([&] {
         const auto tp = detail::Clock::now();
-        part = meshToSdfBricks(mesh, o, boxes, &st.sdf);
-        partSeconds = detail::secondsSince(tp);
-        partPeak = peakMiB();
+        w.part = meshToSdfBricks(mesh, o, w.boxes, &st.sdf);
+        w.partSeconds = detail::secondsSince(tp);
+        w.partPeak = peakMiB();
     });
-    const uint64_t partActive = st.sdf.band.activeVoxels, partTriangles = st.sdf.band.triangles;
+    w.partActive = st.sdf.band.activeVoxels;
+    w.partTriangles = st.sdf.band.triangles;
+    return w;
+}
+
+/// The per-rank numbers to rank 0 (collective).
+void gatherRankRows(DistributedStats& st, const RankWork& w, uint64_t bytes)
+{
+    const int rank = st.rank, size = st.ranks;
+    constexpr int kRow = 8;
+    double mine[kRow] = {double(w.boxes.size()), double(w.partTriangles), double(w.partActive), double(bytes),
+                         w.d.loadOf(rank), w.partSeconds, peakMiB(), w.partPeak};
+    std::vector<double> every(size_t(kRow * size), 0.0);
+    MPI_Gather(mine, kRow, MPI_DOUBLE, every.data(), kRow, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    const int rows = rank == 0 ? size : 1;
+    for (int r = 0; r < rows; ++r) {
+        const double* v = rank == 0 ? &every[size_t(kRow * r)] : mine;
+        st.rankBricks.push_back(uint64_t(v[0]));
+        st.rankTriangles.push_back(uint64_t(v[1]));
+        st.rankActiveVoxels.push_back(uint64_t(v[2]));
+        st.rankBytes.push_back(uint64_t(v[3]));
+        st.rankEstimate.push_back(v[4]);
+        st.rankSeconds.push_back(v[5]);
+        st.rankPeakMiB.push_back(v[6]);
+        st.rankPartPeakMiB.push_back(v[7]);
+    }
+}
+
+} // namespace
+
+openvdb::FloatGrid::Ptr distributedMeshToSdf(const TriangleMesh& mesh, const MeshToSdfOptions& o, int brickLog2,
+                                             DistributedStats* statsOut)
+{
+    const auto t0 = detail::Clock::now();
+    const int rank = worldRank(), size = worldSize();
+    DistributedStats st;
+    st.rank = rank;
+    st.ranks = size;
+    st.brickLog2 = brickLog2;
+    RankWork w = computeRankPart(mesh, o, brickLog2, st, t0);
+    openvdb::FloatGrid::Ptr& part = w.part; // rank 0 keeps its own part as a grid
 
     // ---- the gather, rank by rank, in pieces of kLeavesPerPiece leaves: a rank never holds more
     //      than one piece's bytes besides its leaves (which it frees as they go), rank 0 merges
@@ -294,27 +354,107 @@ openvdb::FloatGrid::Ptr distributedMeshToSdf(const TriangleMesh& mesh, const Mes
     st.secondsFinish = detail::secondsSince(tf);
 
     // ---- per-rank numbers to rank 0
-    constexpr int kRow = 8;
-    double mine[kRow] = {double(boxes.size()), double(partTriangles), double(partActive), double(mySize),
-                         d.loadOf(rank), partSeconds, peakMiB(), partPeak};
-    std::vector<double> every(size_t(kRow * size), 0.0);
-    MPI_Gather(mine, kRow, MPI_DOUBLE, every.data(), kRow, MPI_DOUBLE, 0, MPI_COMM_WORLD);
-    const int rows = rank == 0 ? size : 1;
-    for (int r = 0; r < rows; ++r) {
-        const double* v = rank == 0 ? &every[size_t(kRow * r)] : mine;
-        st.rankBricks.push_back(uint64_t(v[0]));
-        st.rankTriangles.push_back(uint64_t(v[1]));
-        st.rankActiveVoxels.push_back(uint64_t(v[2]));
-        st.rankBytes.push_back(uint64_t(v[3]));
-        st.rankEstimate.push_back(v[4]);
-        st.rankSeconds.push_back(v[5]);
-        st.rankPeakMiB.push_back(v[6]);
-        st.rankPartPeakMiB.push_back(v[7]);
-    }
+    gatherRankRows(st, w, mySize);
     st.seconds = detail::secondsSince(t0);
     st.sdf.seconds = st.seconds;
     if (statsOut) *statsOut = st;
     return grid;
+}
+
+std::string distributedMeshToSdfPieces(const TriangleMesh& mesh, const MeshToSdfOptions& o, const std::string& output,
+                                       int brickLog2, DistributedStats* statsOut)
+{
+    const auto t0 = detail::Clock::now();
+    const int rank = worldRank(), size = worldSize();
+    DistributedStats st;
+    st.rank = rank;
+    st.ranks = size;
+    st.brickLog2 = brickLog2;
+    const std::string manifest = manifestFileName(output), mine = pieceFileName(output, rank);
+    // fail fast: every rank its piece's place, rank 0 the manifest's
+    runOnAllRanks([&] {
+        if (output.empty()) throw InvalidArgumentError("per-rank output: no output path");
+        checkOutputPath(mine);
+        if (rank == 0) checkOutputPath(manifest);
+    });
+    // the run's id, from rank 0: every piece carries it, so the merge refuses a stale piece
+    char id[33] = {};
+    if (rank == 0) {
+        const std::string made = newPieceRunId();
+        std::snprintf(id, sizeof(id), "%s", made.c_str());
+    }
+    MPI_Bcast(id, 33, MPI_CHAR, 0, MPI_COMM_WORLD);
+
+    RankWork w = computeRankPart(mesh, o, brickLog2, st, t0);
+    BrickFinish finish;
+    const float background = w.part ? w.part->background() : 0.0f;
+    const openvdb::math::Transform::Ptr transform = w.part ? w.part->transform().copy() : nullptr;
+
+    // ---- every rank writes its piece (atomically); rank 0 first removes an earlier manifest,
+    //      whose pieces are being replaced
+    const auto tw = detail::Clock::now();
+    BrickPiece piece;
+    bool written = false;
+    auto removeMine = [&] {
+        if (!written) return;
+        std::remove(mine.c_str());
+        written = false;
+    };
+    try {
+        runOnAllRanks([&] {
+            if (rank == 0) {
+                finish = brickFinishFor(mesh, o);
+                std::error_code ec;
+                if (std::filesystem::is_regular_file(manifest, ec) && std::remove(manifest.c_str()) != 0)
+                    throw IoError("cannot replace the manifest '" + manifest + "': " + std::strerror(errno));
+            }
+            if (!w.part) throw Error("no part");
+            piece = writeBrickPiece(mine, *w.part, id, rank, size);
+            written = true;
+            if (injected("piece:" + std::to_string(rank))) throw IoError("cannot write '" + mine + "': injected failure");
+            w.part.reset(); // this rank's leaves are on disk
+        });
+        // ---- the pieces' counts to rank 0, which writes the manifest
+        uint64_t row[3] = {piece.leaves, piece.activeVoxels, piece.bytes};
+        std::vector<uint64_t> rows(size_t(3 * size), 0);
+        MPI_Gather(row, 3, MPI_UINT64_T, rows.data(), 3, MPI_UINT64_T, 0, MPI_COMM_WORLD);
+        runOnAllRanks([&] {
+            if (rank != 0) return;
+            BrickManifest m;
+            m.id = id;
+            m.generator = generatorString();
+            m.output = std::filesystem::path(output).filename().string();
+            m.ranks = size;
+            m.brickLog2 = brickLog2;
+            m.background = background;
+            m.transform = transform;
+            m.finish = finish;
+            for (int r = 0; r < size; ++r) {
+                BrickPiece p;
+                p.rank = r;
+                p.file = std::filesystem::path(pieceFileName(output, r)).filename().string();
+                for (const openvdb::CoordBBox& b : w.d.boxesOf(r)) p.bricks.push_back(b.min());
+                p.leaves = rows[size_t(3 * r)];
+                p.activeVoxels = rows[size_t(3 * r + 1)];
+                p.bytes = rows[size_t(3 * r + 2)];
+                m.pieces.push_back(std::move(p));
+            }
+            if (injected("manifest")) throw IoError("cannot write '" + manifest + "': injected failure");
+            writeBrickManifest(manifest, m);
+        });
+    } catch (...) {
+        removeMine(); // every rank gets here together (runOnAllRanks): no piece is left
+        throw;
+    }
+    st.secondsGather = detail::secondsSince(tw);
+    st.sdf.sign = finish.sign;
+    st.sdf.voxelSize = finish.voxelSize;
+    st.sdf.exteriorBandVoxels = finish.exteriorBandVoxels;
+    st.sdf.interiorBandVoxels = finish.interiorBandVoxels;
+    gatherRankRows(st, w, piece.bytes);
+    st.seconds = detail::secondsSince(t0);
+    if (statsOut) *statsOut = st;
+    return manifest;
 }
 
 } // namespace levelforge

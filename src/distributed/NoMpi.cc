@@ -24,5 +24,10 @@ openvdb::FloatGrid::Ptr distributedMeshToSdf(const TriangleMesh&, const MeshToSd
 {
     noMpi();
 }
+std::string distributedMeshToSdfPieces(const TriangleMesh&, const MeshToSdfOptions&, const std::string&, int,
+                                       DistributedStats*)
+{
+    noMpi();
+}
 
 } // namespace levelforge

@@ -28,11 +28,19 @@
 /// merges and finishes. A failure on any rank (runOnAllRanks()) makes every
 /// rank throw the same error, naming the rank that failed.
 ///
+/// Or, one file per rank (distributedMeshToSdfPieces()): every rank writes its own leaves,
+/// unfinished, to its own .vdb next to the output (`out.rank0003.vdb`, atomically) and rank 0 a
+/// JSON manifest (`out.vdb.manifest.json`) with everything the finish needs; no rank ever holds
+/// more than its part. mergeBrickPieces() (`levelforge merge`, no MPI needed) then reads the
+/// pieces one at a time, moves their leaves into one tree and finishes it exactly as the gather
+/// does: the merged grid equals meshToSdf()'s bit for bit too.
+///
 /// What is not distributed (yet): each rank holds the whole mesh (read by every rank; the
-/// triangles are selected after reading, no byte-range reads); rank 0 holds the whole output
-/// (a gather, not one file per rank); the winding-number sign, expansions (sweep, vector), the
-/// scan method, reference transforms and the extra grids (fog, primitive index, attributes) are
-/// refused with InvalidArgumentError. See docs/distributed.md.
+/// triangles are selected after reading, no byte-range reads); the finish (flood fill, interior
+/// fill) runs on one process that holds the whole output (rank 0 of the gather, or the merge);
+/// the winding-number sign, expansions (sweep, vector), the scan method, reference transforms
+/// and the extra grids (fog, primitive index, attributes) are refused with InvalidArgumentError.
+/// See docs/distributed.md.
 #pragma once
 
 #include <levelforge/pipeline/MeshToSdf.h>
@@ -102,6 +110,31 @@ openvdb::FloatGrid::Ptr meshToSdfBricks(const TriangleMesh& mesh, const MeshToSd
 openvdb::FloatGrid::Ptr finishBrickUnion(const TriangleMesh& mesh, const MeshToSdfOptions& options,
                                          std::vector<openvdb::FloatGrid::Ptr>& parts, MeshToSdfStats* stats = nullptr);
 
+/// @brief What the finish of a brick union needs besides the leaves: what a mesh and a
+///        MeshToSdfOptions resolve to (brickFinishFor()), and what a manifest records.
+struct BrickFinish
+{
+    double voxelSize = 0.0;                  ///< world units (resolveVoxelSize())
+    float exteriorBandVoxels = 3.0f;         ///< final band half-width outside, voxels
+    float interiorBandVoxels = 3.0f;         ///< final band half-width inside, voxels
+    SignMode sign = SignMode::Pseudonormal;  ///< Pseudonormal or Unsigned (never Auto)
+    bool fillInterior = false;               ///< MeshToSdfOptions::fillInterior
+    std::string gridName = "surface";        ///< the grid's name
+    std::string source;                      ///< the "levelforge:source" metadata
+    std::string method = "chang2008-exact-band"; ///< the "levelforge:method" metadata
+};
+
+/// @brief The finish of a conversion of @p mesh with @p options (checkDistributable() resolves
+///        the sign). @throws InvalidArgumentError what checkDistributable() refuses
+BrickFinish brickFinishFor(const TriangleMesh& mesh, const MeshToSdfOptions& options);
+
+/// @brief finishBrickUnion() without the mesh: merges the parts (consumed; the first one's tree
+///        is the base when it holds leaves only) and finishes as meshToSdf() does.
+/// @throws InvalidArgumentError no parts, two parts hold the same leaf, parts whose background,
+///         transform or sign differ, a sign other than @p finish's
+openvdb::FloatGrid::Ptr finishBrickUnion(const BrickFinish& finish, std::vector<openvdb::FloatGrid::Ptr>& parts,
+                                         MeshToSdfStats* stats = nullptr);
+
 /// @brief A grid as bytes (OpenVDB's io::Stream, uncompressed: exact and fast), and back.
 std::string serializeGrid(const openvdb::FloatGrid& grid);
 /// @throws IoError the bytes are not one FloatGrid written by serializeGrid()
@@ -148,5 +181,106 @@ struct DistributedStats
 ///         built without MPI
 openvdb::FloatGrid::Ptr distributedMeshToSdf(const TriangleMesh& mesh, const MeshToSdfOptions& options,
                                              int brickLog2 = 7, DistributedStats* stats = nullptr);
+
+// ---------------------------------------------------------------- one file per rank
+
+/// @brief The file of rank @p rank's piece for the output @p output: the output's stem, then
+///        ".rank" and the rank in at least 4 digits, then its extension (".vdb" when it has
+///        none): "dir/out.vdb" -> "dir/out.rank0003.vdb".
+std::string pieceFileName(const std::string& output, int rank);
+/// @brief The manifest of the pieces of @p output: @p output + ".manifest.json".
+std::string manifestFileName(const std::string& output);
+
+/// One rank's piece in a manifest.
+struct BrickPiece
+{
+    int rank = 0;
+    std::string file;                         ///< as written in the manifest (relative: to the manifest's folder)
+    std::vector<openvdb::Coord> bricks;       ///< origins of the rank's bricks (index space)
+    uint64_t leaves = 0, activeVoxels = 0;    ///< what the piece holds
+    uint64_t bytes = 0;                       ///< the file's size
+};
+
+/// @brief A manifest of pieces (the JSON file is described in docs/distributed.md).
+struct BrickManifest
+{
+    std::string id;          ///< this run's id: every piece carries it ("levelforge:piece_of")
+    std::string generator;   ///< the program that wrote it (generatorString())
+    std::string output;      ///< the output the pieces make (a file name, for the user)
+    int ranks = 1;
+    int brickLog2 = 7;
+    float background = 0.0f; ///< every piece's background (world units)
+    openvdb::math::Transform::Ptr transform; ///< every piece's transform
+    BrickFinish finish;      ///< how the union is finished
+    std::vector<BrickPiece> pieces; ///< one per rank, in rank order
+};
+
+/// Grid metadata of a piece: the manifest's id, the piece's rank and the number of ranks.
+inline constexpr const char* kPieceOfMetadata = "levelforge:piece_of";
+inline constexpr const char* kPieceRankMetadata = "levelforge:piece_rank";
+inline constexpr const char* kPieceRanksMetadata = "levelforge:piece_ranks";
+
+/// @brief A new id for a run's manifest and pieces (32 hexadecimal digits, random).
+std::string newPieceRunId();
+
+/// @brief Writes one rank's part (as meshToSdfBricks() made it: values and active states as
+///        computed, no flood fill) to @p path atomically, marked with @p id, @p rank and
+///        @p ranks (grid metadata above). The part itself is not changed.
+/// @return the piece's entry for the manifest (file: @p path's file name; bricks left empty)
+/// @throws IoError the file cannot be written (nothing is left behind)
+BrickPiece writeBrickPiece(const std::string& path, const openvdb::FloatGrid& part, const std::string& id, int rank,
+                           int ranks);
+
+/// @brief Writes @p manifest as JSON to @p path atomically.
+/// @throws IoError the file cannot be written (nothing is left behind)
+void writeBrickManifest(const std::string& path, const BrickManifest& manifest);
+
+/// @brief Reads and checks a manifest (every field present and of its type, one piece per rank
+///        in rank order, distinct files, a uniform linear transform).
+/// @throws IoError naming @p path and the problem: missing or unreadable, not JSON, not a
+///         levelforge manifest, a missing or bad field
+BrickManifest readBrickManifest(const std::string& path);
+
+/// Options of mergeBrickPieces().
+struct MergeOptions
+{
+    /// Checked between pieces; stops with InterruptedError.
+    openvdb::util::NullInterrupter* interrupter = nullptr;
+};
+
+/// What mergeBrickPieces() did.
+struct MergeStats
+{
+    int pieces = 0;
+    uint64_t leaves = 0, activeVoxels = 0, filledVoxels = 0, bytesRead = 0;
+    double secondsRead = 0, secondsFinish = 0, seconds = 0;
+};
+
+/// @brief `levelforge merge`: reads the pieces of @p manifestPath one at a time (each checked
+///        against the manifest), moves their leaves into one tree and finishes it as
+///        finishBrickUnion() does. The result equals the single-process meshToSdf() bit for bit.
+///        Needs no MPI.
+/// @throws IoError naming the file and the problem: the manifest (see readBrickManifest()), a
+///         piece missing or unreadable, not one float grid, not a piece of this manifest (id,
+///         rank, number of ranks), another transform, background or sign, other leaf or voxel
+///         counts than the manifest's, a leaf outside its rank's bricks or in two pieces
+/// @throws InterruptedError the interrupter asked to stop
+openvdb::FloatGrid::Ptr mergeBrickPieces(const std::string& manifestPath, const MergeOptions& options = {},
+                                         MergeStats* stats = nullptr);
+
+/// @brief distributedMeshToSdf() writing one file per rank instead of gathering: every rank
+///        writes its piece to pieceFileName(output, rank), then rank 0 writes the manifest to
+///        manifestFileName(output) (an earlier manifest there is removed first). Collective.
+///        If any rank fails, every rank throws the same error (runOnAllRanks()) and the pieces
+///        written by this call are removed: no manifest, no piece is left.
+/// @param[in]  output     the .vdb that `levelforge merge` will make; names the pieces and manifest
+/// @param[out] stats      optional (rankBytes: each piece's file size; no final grid: sdf holds
+///                        this rank's band stage)
+/// @return the manifest's path, on every rank
+/// @throws what meshToSdf() throws, IoError for the files, on every rank; InvalidArgumentError
+///         when built without MPI
+std::string distributedMeshToSdfPieces(const TriangleMesh& mesh, const MeshToSdfOptions& options,
+                                       const std::string& output, int brickLog2 = 7,
+                                       DistributedStats* stats = nullptr);
 
 } // namespace levelforge
