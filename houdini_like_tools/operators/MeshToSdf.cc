@@ -85,6 +85,64 @@ void printScanStats(std::ostream& os, const TetScanStats& s)
        << ", finish " << fmt("%.3f", s.secondsFinish) << "\n";
 }
 
+/// `--distributed --distributed-output per-rank`, on rank 0: what the ranks wrote.
+void printPieces(OperatorArgs& args, const TriangleMesh& mesh, const MeshToSdfOptions& options,
+                 const DistributedStats& ds, const std::string& output, const std::string& manifest, int64_t brick,
+                 double totalSeconds)
+{
+    std::ostream& out = args.out();
+    const int ranks = ds.ranks;
+    double maxPeak = 0.0, maxSeconds = 0.0, mib = 0.0;
+    uint64_t active = 0;
+    for (int r = 0; r < ranks; ++r) {
+        maxPeak = std::max(maxPeak, ds.rankPeakMiB[size_t(r)]);
+        maxSeconds = std::max(maxSeconds, ds.rankSeconds[size_t(r)]);
+        mib += double(ds.rankBytes[size_t(r)]) / 1048576.0;
+        active += ds.rankActiveVoxels[size_t(r)];
+    }
+    args.stat("voxel_size", ds.sdf.voxelSize);
+    args.stat("band_active_voxels", active);
+    args.stat("exterior_band_voxels", double(ds.sdf.exteriorBandVoxels));
+    args.stat("interior_band_voxels", double(ds.sdf.interiorBandVoxels));
+    args.stat("triangles", uint64_t(mesh.triangleCount()));
+    args.stat("sign", std::string(toString(ds.sdf.sign)));
+    args.stat("ranks", int64_t(ranks));
+    args.stat("bricks", uint64_t(ds.bricks));
+    args.stat("convert_seconds", ds.seconds);
+    args.stat("write_seconds", ds.secondsGather);
+    args.stat("max_rank_seconds", maxSeconds);
+    args.stat("max_rank_peak_mib", maxPeak);
+    args.stat("total_seconds", totalSeconds);
+    out << "levelforge: wrote " << manifest << " and " << ranks << (ranks == 1 ? " piece (" : " pieces (")
+        << pieceFileName(output, 0) << (ranks > 1 ? " ... " + pieceFileName(output, ranks - 1) : std::string())
+        << ", " << fmt("%.1f", mib) << " MiB); make " << output << " with: levelforge merge " << manifest << " "
+        << output << "\n"
+        << "  grid '" << options.gridName << "': voxel size " << fmt("%.6g", ds.sdf.voxelSize) << " (world units), "
+        << withThousands(active) << " band voxels (unfinished: no flood fill" << (options.fillInterior ? ", no fill" : "")
+        << ")\n"
+        << "  band: " << fmt("%g", ds.sdf.exteriorBandVoxels) << " voxels outside, "
+        << fmt("%g", ds.sdf.interiorBandVoxels) << " voxels inside\n"
+        << "  mesh: " << withThousands(mesh.triangleCount()) << " triangles, " << withThousands(mesh.vertexCount())
+        << " vertices\n"
+        << "  sign: " << toString(ds.sdf.sign) << (options.fillInterior ? ", interior filled by the merge" : "") << "\n"
+        << "  distributed: " << ranks << (ranks == 1 ? " rank, " : " ranks, ") << withThousands(ds.bricks)
+        << " bricks of " << brick << "^3 voxels; one file per rank\n"
+        << "  time: " << fmt("%.2f", ds.seconds) << " s conversion (bricks " << fmt("%.2f", ds.secondsDecompose)
+        << " s, slowest rank " << fmt("%.2f", maxSeconds) << " s, writing " << fmt("%.2f", ds.secondsGather)
+        << " s), " << fmt("%.2f", totalSeconds) << " s total\n";
+    if (args.getBool("report")) {
+        out << "  ranks: rank, bricks, estimated band voxels, triangles, active voxels, seconds, peak MiB (computed, "
+               "end), piece MiB\n";
+        for (int r = 0; r < ranks; ++r)
+            out << "    " << r << ": " << withThousands(ds.rankBricks[size_t(r)]) << ", "
+                << withThousands(uint64_t(ds.rankEstimate[size_t(r)])) << ", "
+                << withThousands(ds.rankTriangles[size_t(r)]) << ", " << withThousands(ds.rankActiveVoxels[size_t(r)])
+                << ", " << fmt("%.2f", ds.rankSeconds[size_t(r)]) << ", " << fmt("%.1f", ds.rankPartPeakMiB[size_t(r)])
+                << ", " << fmt("%.1f", ds.rankPeakMiB[size_t(r)]) << ", "
+                << fmt("%.1f", double(ds.rankBytes[size_t(r)]) / 1048576.0) << "\n";
+    }
+}
+
 /// `--distributed`: one conversion on every rank of `mpirun` (distributed/DistributedMeshToSdf.h).
 /// Every rank reads the mesh and computes its bricks; rank 0 gathers, writes and prints. Each step
 /// that can fail on one rank alone runs under runOnAllRanks(), so that every rank stops with the
@@ -119,12 +177,23 @@ void cookDistributed(OperatorArgs& args)
     while ((int64_t(1) << brickLog2) < brick) ++brickLog2;
     if ((int64_t(1) << brickLog2) != brick)
         throw UsageError("invalid value " + std::to_string(brick) + " for --brick-size: a power of two from 8 to 4096");
+    const bool perRank = args.getString("distributed-output") == "per-rank";
     if (isMemoryName(output))
-        throw UsageError("--distributed writes a .vdb file (rank 0 gathers the grid), not the in-memory slot " + output);
+        throw UsageError("--distributed writes a .vdb file (rank 0 gathers the grid) or one per rank, not the in-memory "
+                         "slot " + output);
+    if (perRank && output == "/dev/null")
+        throw UsageError("--distributed-output per-rank writes files next to the output: give a .vdb path, not /dev/null");
     if (args.isSet("reference"))
         throw UsageError("--distributed supports no --reference yet (docs/distributed.md)");
 
-    runOnAllRanks([&] { if (root) checkOutputTarget(args, output); });
+    runOnAllRanks([&] {
+        if (perRank) {
+            checkOutputTarget(args, pieceFileName(output, rank));
+            if (root) checkOutputTarget(args, manifestFileName(output));
+        } else if (root) {
+            checkOutputTarget(args, output);
+        }
+    });
     TriangleMesh mesh;
     MeshReport validation;
     MeshToSdfOptions options;
@@ -163,6 +232,11 @@ void cookDistributed(OperatorArgs& args)
     });
 
     DistributedStats ds;
+    if (perRank) {
+        const std::string manifest = distributedMeshToSdfPieces(mesh, options, output, brickLog2, &ds);
+        if (root) printPieces(args, mesh, options, ds, output, manifest, brick, secondsSince(t0));
+        return;
+    }
     const openvdb::FloatGrid::Ptr grid = distributedMeshToSdf(mesh, options, brickLog2, &ds);
     runOnAllRanks([&] {
         if (!root) return;
@@ -225,6 +299,8 @@ void cookDistributed(OperatorArgs& args)
 
 void cookMeshToSdf(OperatorArgs& args)
 {
+    if (args.isSet("distributed-output") && !args.getBool("distributed"))
+        throw UsageError("--distributed-output is an option of --distributed (under mpirun)");
     if (args.getBool("distributed")) {
         cookDistributed(args);
         return;
@@ -487,6 +563,14 @@ LEVELFORGE_REGISTER_OPERATOR(
                            "chang, --expansion none and the pseudonormal or unsigned sign (auto on a closed "
                            "mesh), with or without --fill-interior (docs/distributed.md). Needs levelforge "
                            "built with MPI (libopenmpi-dev)"))
+        .param(Param::choice("distributed-output", "Distributed Output",
+                             "--distributed: gather: rank 0 gathers every rank's leaves and writes the one .vdb "
+                             "(rank 0 holds the whole grid); per-rank: each rank writes its own leaves, unfinished, "
+                             "to OUTPUT's name with .rankNNNN before the extension (out.rank0003.vdb), and rank 0 a "
+                             "manifest, OUTPUT.manifest.json; 'levelforge merge OUTPUT.manifest.json OUTPUT' then "
+                             "makes the same .vdb as gather (no rank holds more than its share)",
+                             {"gather", "per-rank"})
+                   .defaultValue("gather"))
         .param(Param::integer("brick-size", "Brick Size",
                               "--distributed: width of the bricks the index space is cut into, in voxels (a "
                               "power of two; 128 = the level-1 internal nodes of a float tree)")
@@ -507,6 +591,8 @@ LEVELFORGE_REGISTER_OPERATOR(
         .example("levelforge mesh-to-sdf prop.obj prop.vdb --reference set.vdb")
         .example("levelforge mesh-to-sdf scan.ply scan.vdb --voxel-size 0.01 --attribute Cd,N")
         .example("mpirun -n 4 levelforge mesh-to-sdf statue.obj statue.vdb --voxel-count 4096 --distributed")
+        .example("mpirun -n 4 levelforge mesh-to-sdf statue.obj statue.vdb --voxel-count 4096 --distributed "
+                 "--distributed-output per-rank")
         .cook(cookMeshToSdf));
 
 } // namespace levelforge::ops
