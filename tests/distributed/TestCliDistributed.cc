@@ -6,6 +6,7 @@
 // --distributed error is checked instead).
 #include "TestUtil.h"
 #include "distributed/GridIdentity.h"
+#include "distributed/MpiRunner.h"
 #include "tools/CliRunner.h"
 
 #include <levelforge/distributed/DistributedMeshToSdf.h>
@@ -22,36 +23,6 @@ using namespace levelforge_test;
 
 #if defined(LEVELFORGE_CLI_PATH)
 namespace {
-
-/// Runs `mpirun -n ranks <command>` (the command already quoted), OpenMPI as root allowed,
-/// oversubscribed; stdout and stderr captured.
-CliRun runMpi(const fs::path& dir, int ranks, const std::string& command)
-{
-    CliRun r;
-#ifdef LEVELFORGE_MPIEXEC
-    r.command = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 "
-                "OMPI_MCA_btl_vader_single_copy_mechanism=none " +
-                shellQuote(LEVELFORGE_MPIEXEC) + " --allow-run-as-root --oversubscribe --bind-to none -n " +
-                std::to_string(ranks) + " " + command;
-#endif
-    const fs::path outFile = dir / "mpi.stdout", errFile = dir / "mpi.stderr";
-    const int status = std::system((r.command + " >" + shellQuote(outFile.string()) + " 2>" +
-                                    shellQuote(errFile.string()) + " </dev/null").c_str());
-    r.code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
-    r.out = readText(outFile);
-    r.err = readText(errFile);
-    return r;
-}
-
-std::string cli(const std::vector<std::string>& args)
-{
-    std::string c = shellQuote(LEVELFORGE_CLI_PATH);
-    for (const std::string& a : args) c += " " + shellQuote(a);
-    return c;
-}
-
-#define LF_NEED_MPI()                                                                             \
-    if (!levelforge::mpiAvailable()) GTEST_SKIP() << "levelforge was built without MPI (LEVELFORGE_MPI)"
 
 /// Converts @p mesh once alone and under mpirun with 1..4 ranks; every output must be identical.
 void expectIdenticalUnderMpi(const std::string& name, const std::string& mesh, std::vector<std::string> options,
