@@ -8,9 +8,11 @@
 #include "TestUtil.h"
 #include "distributed/GridIdentity.h"
 #include "distributed/MpiRunner.h"
+#include "distributed/PieceWriter.h"
 #include "tools/CliRunner.h"
 
 #include <levelforge/distributed/DistributedMeshToSdf.h>
+#include <levelforge/reference/MeshShapes.h>
 
 #include <gtest/gtest.h>
 
@@ -171,6 +173,30 @@ TEST(CliDistributedMerge, BadManifestOrMissingPieceWritesNothing)
 #endif
 
 #if defined(LEVELFORGE_CLI_PATH)
+TEST(CliDistributedMerge, MergeOperatorNeedsNoMpi)
+{
+    // pieces written in this process (as 3 ranks would), merged by the program: with or without MPI
+    const fs::path dir = scratchDir("distributed_merge_no_mpi");
+    const CliRun s = runLevelforge(dir / "single", {"mesh-to-sdf", "builtin:torus-knot", (dir / "single.vdb").string(),
+                                                    "--voxel-count", "96", "--fill-interior", "--quiet"});
+    ASSERT_EQ(s.code, 0) << s.err;
+    levelforge::MeshToSdfOptions o;
+    o.voxelCount = 96;
+    o.fillInterior = true;
+    const std::string manifest = writePieces(levelforge::makeBuiltinMesh("builtin:torus-knot"), o, 3, 4, dir);
+    const std::string out = (dir / "merged.vdb").string();
+    const CliRun m = runLevelforge(dir / "merge", {"merge", manifest, out, "--quiet"});
+    ASSERT_EQ(m.code, 0) << m.err;
+    EXPECT_EQ(countLines(m.out, "levelforge: wrote " + out), 1) << m.out;
+    const openvdb::FloatGrid::Ptr a = readSingleFloatGrid((dir / "single.vdb").string()), b = readSingleFloatGrid(out);
+    ASSERT_TRUE(a && b);
+    EXPECT_EQ(gridDifference(*a, *b), "");
+    // the in-memory slot of a pipeline is no manifest
+    const CliRun u = runLevelforge(dir / "slot", {"merge", "@pieces", out + ".2.vdb"});
+    EXPECT_NE(u.code, 0);
+    EXPECT_FALSE(fs::exists(out + ".2.vdb"));
+}
+
 TEST(CliDistributedMerge, PerRankOutputNeedsDistributed)
 {
     const fs::path dir = scratchDir("distributed_merge_usage");

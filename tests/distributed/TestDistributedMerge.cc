@@ -6,6 +6,7 @@
 // refused with one IoError naming the file and the problem.
 #include "TestUtil.h"
 #include "distributed/GridIdentity.h"
+#include "distributed/PieceWriter.h"
 
 #include <levelforge/core/Exceptions.h>
 #include <levelforge/distributed/DistributedMeshToSdf.h>
@@ -24,39 +25,6 @@ using namespace levelforge;
 using levelforge_test::gridDifference;
 
 namespace {
-
-/// Converts @p mesh in @p ranks parts, writes each as a piece of dir/out.vdb and the manifest
-/// (what distributedMeshToSdfPieces() does under MPI); returns the manifest's path.
-std::string writePieces(const TriangleMesh& mesh, const MeshToSdfOptions& o, int ranks, int brickLog2,
-                        const fs::path& dir, const std::string& id = newPieceRunId())
-{
-    const std::string output = (dir / "out.vdb").string();
-    const BrickFinish finish = brickFinishFor(mesh, o);
-    const double limit = finish.sign == SignMode::Unsigned
-                             ? double(finish.exteriorBandVoxels)
-                             : double(std::max(finish.exteriorBandVoxels, finish.interiorBandVoxels));
-    const BrickDecomposition d = decomposeIntoBricks(mesh, finish.voxelSize, limit, ranks, brickLog2);
-    BrickManifest m;
-    m.id = id;
-    m.generator = generatorString();
-    m.output = "out.vdb";
-    m.ranks = ranks;
-    m.brickLog2 = brickLog2;
-    m.finish = finish;
-    for (int r = 0; r < ranks; ++r) {
-        const openvdb::FloatGrid::Ptr part = meshToSdfBricks(mesh, o, d.boxesOf(r));
-        if (r == 0) {
-            m.background = part->background();
-            m.transform = part->transform().copy();
-        }
-        BrickPiece p = writeBrickPiece(pieceFileName(output, r), *part, id, r, ranks);
-        for (const openvdb::CoordBBox& b : d.boxesOf(r)) p.bricks.push_back(b.min());
-        m.pieces.push_back(p);
-    }
-    const std::string manifest = manifestFileName(output);
-    writeBrickManifest(manifest, m);
-    return manifest;
-}
 
 MeshToSdfOptions knotOptions()
 {
@@ -109,7 +77,7 @@ TEST(DistributedMerge, PiecesMergedEqualSingleProcessOnOneToFourRanks)
         for (int ranks = 1; ranks <= 4; ++ranks) {
             const fs::path dir = levelforge_test::scratchDir("merge_knot_" + std::to_string(brickLog2) + "_" +
                                                              std::to_string(ranks));
-            const std::string manifest = writePieces(knot, o, ranks, brickLog2, dir);
+            const std::string manifest = levelforge_test::writePieces(knot, o, ranks, brickLog2, dir);
             MergeStats st;
             const openvdb::FloatGrid::Ptr merged = mergeBrickPieces(manifest, {}, &st);
             EXPECT_EQ(gridDifference(*single, *merged), "") << ranks << " ranks, bricks of 2^" << brickLog2;
@@ -136,14 +104,14 @@ TEST(DistributedMerge, FillUnequalWidthsUnsignedAndEmptyRanks)
     f.interiorWidth = 1.5;
     f.gridName = "filled";
     const openvdb::FloatGrid::Ptr filled = meshToSdf(knot, f);
-    EXPECT_EQ(gridDifference(*filled, *mergeBrickPieces(writePieces(knot, f, 3, 4,
+    EXPECT_EQ(gridDifference(*filled, *mergeBrickPieces(levelforge_test::writePieces(knot, f, 3, 4,
                                                                     levelforge_test::scratchDir("merge_fill")))),
               "")
         << "fill interior, 4 / 1.5 voxels";
     MeshToSdfOptions u = knotOptions();
     u.sign = SignMode::Unsigned;
     EXPECT_EQ(gridDifference(*meshToSdf(knot, u),
-                             *mergeBrickPieces(writePieces(knot, u, 2, 5, levelforge_test::scratchDir("merge_unsigned")))),
+                             *mergeBrickPieces(levelforge_test::writePieces(knot, u, 2, 5, levelforge_test::scratchDir("merge_unsigned")))),
               "")
         << "unsigned";
     // a sphere inside one brick: two of three ranks write empty pieces
@@ -152,7 +120,7 @@ TEST(DistributedMerge, FillUnequalWidthsUnsignedAndEmptyRanks)
     b.voxelSize = 0.01;
     b.fillInterior = true;
     const fs::path dir = levelforge_test::scratchDir("merge_one_brick");
-    const std::string manifest = writePieces(ball, b, 3, 7, dir);
+    const std::string manifest = levelforge_test::writePieces(ball, b, 3, 7, dir);
     const BrickManifest m = readBrickManifest(manifest);
     int empty = 0;
     for (const BrickPiece& p : m.pieces) empty += p.leaves == 0 ? 1 : 0;
@@ -167,7 +135,7 @@ TEST(DistributedMerge, ManifestReadsBackAsWritten)
     o.exteriorWidth = 2.5;
     o.source = "a \"quoted\" source\nwith a new line";
     const fs::path dir = levelforge_test::scratchDir("merge_manifest");
-    const BrickManifest m = readBrickManifest(writePieces(knot, o, 3, 5, dir, "0123456789abcdef0123456789abcdef"));
+    const BrickManifest m = readBrickManifest(levelforge_test::writePieces(knot, o, 3, 5, dir, "0123456789abcdef0123456789abcdef"));
     const BrickFinish f = brickFinishFor(knot, o);
     EXPECT_EQ(m.id, "0123456789abcdef0123456789abcdef");
     EXPECT_EQ(m.ranks, 3);
@@ -197,7 +165,7 @@ TEST(DistributedMerge, BadManifestsAndPiecesAreRefusedNamingTheFile)
     const TriangleMesh knot = makeTorusKnot();
     const MeshToSdfOptions o = knotOptions();
     const fs::path dir = levelforge_test::scratchDir("merge_bad");
-    const std::string manifest = writePieces(knot, o, 3, 4, dir);
+    const std::string manifest = levelforge_test::writePieces(knot, o, 3, 4, dir);
     const std::string good = readAll(manifest);
     const fs::path bad = dir / "bad.json";
     auto edited = [&](const std::string& from, const std::string& to) {
@@ -241,7 +209,7 @@ TEST(DistributedMerge, BadManifestsAndPiecesAreRefusedNamingTheFile)
     }
     // a piece of another run in place of rank 1's
     const fs::path otherDir = levelforge_test::scratchDir("merge_bad_other_run");
-    writePieces(knot, o, 3, 4, otherDir);
+    levelforge_test::writePieces(knot, o, 3, 4, otherDir);
     fs::copy_file(dir / "out.rank0001.vdb", dir / "keep.vdb", fs::copy_options::overwrite_existing);
     fs::copy_file(otherDir / "out.rank0001.vdb", dir / "out.rank0001.vdb", fs::copy_options::overwrite_existing);
     expectRefused(manifest, {"out.rank0001.vdb", "not a piece of this manifest"}, "a piece of another run");
