@@ -144,9 +144,9 @@ def test_docstrings_and_help():
 
 OPERATORS = {
     # operator: (function, CLI parameters that are not keyword arguments (and why), renamed)
-    # distributed, brick-size: one conversion across the ranks of mpirun (docs/distributed.md);
-    # a Python call converts in its own process
-    "mesh-to-sdf": ("mesh_to_sdf", {"quiet", "report", "distributed", "brick-size"}, {}),
+    # distributed, distributed-output, brick-size: one conversion across the ranks of mpirun
+    # (docs/distributed.md); a Python call converts in its own process
+    "mesh-to-sdf": ("mesh_to_sdf", {"quiet", "report", "distributed", "distributed-output", "brick-size"}, {}),
     "expand": ("expand", {"quiet", "grid-name"}, {}),  # grid-name picks the grid in a file
     "reshape": ("reshape", {"quiet", "grid-name"}, {}),  # grid-name picks the grid in a file
     "volume-to-sdf": ("volume_to_sdf", {"quiet", "vdb-grid", "raw-dims", "raw-type", "raw-spacing",
