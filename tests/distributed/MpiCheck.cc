@@ -3,7 +3,8 @@
 // Every rank calls distributedMeshToSdf(); rank 0 checks the result against meshToSdf() bit for
 // bit (tree, tiles, metadata) for several brick sizes and options; then a failure on the last rank
 // alone must reach every rank as the same typed error naming that rank. Exit status 0 when all
-// holds (on every rank), 1 otherwise.
+// holds (on every rank), 1 otherwise. Also one file per rank (distributedMeshToSdfPieces()),
+// merged on rank 0 (mergeBrickPieces()), against meshToSdf().
 #include "distributed/GridIdentity.h"
 
 #include <levelforge/core/Exceptions.h>
@@ -11,6 +12,7 @@
 #include <levelforge/reference/MeshShapes.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 using namespace levelforge;
@@ -53,6 +55,32 @@ int main()
         if (!diff.empty()) ++failures;
         std::printf("%s on %d ranks (%llu bricks): %s\n", c.name, ranks, (unsigned long long)st.bricks,
                     diff.empty() ? "identical" : diff.c_str());
+    }
+    // one file per rank, then the merge on rank 0 (no MPI in it): the same grid
+    {
+        const Case& c = cases[2]; // widths 4 / 1.5, filled, bricks of 16
+        const std::filesystem::path dir =
+            std::filesystem::temp_directory_path() / ("levelforge_mpi_check_" + std::to_string(ranks));
+        std::string diff;
+        try {
+            runOnAllRanks([&] {
+                if (rank == 0) std::filesystem::create_directories(dir);
+            });
+            const std::string manifest = distributedMeshToSdfPieces(knot, c.options, (dir / "out.vdb").string(),
+                                                                    c.brickLog2);
+            if (rank == 0) {
+                diff = levelforge_test::gridDifference(*meshToSdf(knot, c.options), *mergeBrickPieces(manifest));
+                if (!diff.empty()) ++failures;
+                std::printf("%s on %d ranks, one file per rank, merged: %s\n", c.name, ranks,
+                            diff.empty() ? "identical" : diff.c_str());
+            }
+            runOnAllRanks([&] {
+                if (rank == 0) std::filesystem::remove_all(dir);
+            });
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "rank %d: one file per rank: %s\n", rank, e.what());
+            ++failures;
+        }
     }
     // a failure on the last rank alone: every rank gets it, typed, naming the rank
     try {
