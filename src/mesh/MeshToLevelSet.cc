@@ -225,6 +225,9 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
     // 92 triangle bounds and 45 boxes per voxel; before that, wide bands, limit >= 8, searched
     // the frontier per voxel: 6x the box tests at band 20.)
     constexpr double kHalfDiagonal = 0.8660254037844387 + 1e-12;
+    // narrow bands (limit below this) list clusters only: their voxels bound the clusters' triangles
+    // at the voxel itself (half the exact evaluations of the planes at band 3, as fast)
+    constexpr double kPlaneListLimit = 4.5;
     constexpr size_t kDirectCandidates = 12; // more candidates at a voxel: bound their clusters at the voxel
     const double blockReach = ctx.limit + kHalfDiagonal + ctx.margin;
     const double radius = ctx.hierarchy.maxClusterRadius();
@@ -232,7 +235,7 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
     const size_t top = s.nLevels - 1;
     // a frontier of subtrees (more clusters within reach than kMaxFlat: a dense mesh in a few
     // cells) lists clusters only from the first block on
-    s.btClustersOnly = !s.flat;
+    s.btClustersOnly = !s.flat || ctx.limit < kPlaneListLimit;
     if (ctx.hierarchy.pieces() != 0 && s.btSeen.size() != ctx.mesh.triangles.size()) s.btSeen.assign(ctx.mesh.triangles.size(), 0u);
     for (int bx = 0; bx < 4; ++bx)
         for (int by = 0; by < 4; ++by)
@@ -276,7 +279,7 @@ LeafResult computeLeaf(const Context& ctx, const Coord& origin, Scratch& s, bool
                 const bool byClusters = listed > kMaxListed;
                 // the next block of the leaf lists only clusters when this one had too many
                 // triangles (dense meshes at coarse voxels: their blocks all do)
-                s.btClustersOnly = s.btCount + s.btLanes > kMaxListed;
+                s.btClustersOnly = s.btCount + s.btLanes > kMaxListed || ctx.limit < kPlaneListLimit;
                 if (byClusters) {
                     std::sort(s.blockList.begin(), s.blockList.end());
                     blockBoxes(ctx, v.p, s);
