@@ -146,7 +146,7 @@ int writeReport(const CommonOptions& common, const nlohmann::json& report, std::
     // After Ctrl-C nothing more is written (Interrupt.h), and the one error line is "interrupted".
     if (interruptRequested()) return kExitOk;
     try {
-        writeTextAtomic(common.reportJson, jsonText(report, 2) + "\n");
+        detail::writeTextAtomic(common.reportJson, jsonText(report, 2) + "\n");
     } catch (const std::exception& e) {
         err << "levelforge: error: " << oneLine(e.what()) << std::endl;
         return kExitFailure;
@@ -249,22 +249,6 @@ std::vector<int> taskFrames(const std::vector<int>& frames, int index, int count
 std::string cookReportJson(const OperatorArgs& args, double seconds, const std::string& error)
 {
     return jsonText(reportObject(args, seconds, error), -1);
-}
-
-void writeTextAtomic(const std::string& path, const std::string& text)
-{
-    detail::AtomicFile file(path, "cannot write '" + path + "'");
-    const char* p = text.data();
-    size_t left = text.size();
-    while (left > 0) {
-        const ssize_t n = ::write(file.descriptor(), p, left);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) file.fail(std::strerror(errno));
-        p += n;
-        left -= size_t(n);
-    }
-    file.sync();
-    file.commit();
 }
 
 int cookWithCommonOptions(const OperatorArgs& args, const CommonOptions& common, std::ostream& out,

@@ -71,8 +71,4 @@ int cookWithCommonOptions(const OperatorArgs& args, const CommonOptions& common,
 ///        seconds, status ("ok" or "failed") and the error message.
 std::string cookReportJson(const OperatorArgs& args, double seconds, const std::string& error);
 
-/// @brief Writes @p text to @p path atomically (temp + rename).
-/// @throws IoError naming the path
-void writeTextAtomic(const std::string& path, const std::string& text);
-
 } // namespace levelforge::ops

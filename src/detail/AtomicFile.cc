@@ -379,4 +379,20 @@ void AtomicFile::commit()
     syncFile(parentDirectory(mTarget).string(), /*directory=*/true); // best effort
 }
 
+void writeTextAtomic(const std::string& path, const std::string& text)
+{
+    AtomicFile file(path, "cannot write '" + path + "'");
+    const char* p = text.data();
+    size_t left = text.size();
+    while (left > 0) {
+        const ssize_t n = ::write(file.descriptor(), p, left);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) file.fail(std::strerror(errno));
+        p += n;
+        left -= size_t(n);
+    }
+    file.sync();
+    file.commit();
+}
+
 } // namespace levelforge::detail

@@ -189,4 +189,8 @@ private:
     bool mDone = false;        ///< committed, or the temporary file already removed
 };
 
+/// Writes @p text to @p path through an AtomicFile (temp, fsync, rename): the whole text or no
+/// file. Throws IoError "cannot write '<path>': <cause>".
+void writeTextAtomic(const std::string& path, const std::string& text);
+
 } // namespace levelforge::detail

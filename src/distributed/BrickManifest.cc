@@ -65,23 +65,6 @@ bool sameMatrix(const openvdb::math::Transform& a, const openvdb::math::Transfor
 
 bool sameBits(float a, float b) { return std::memcmp(&a, &b, sizeof(float)) == 0; }
 
-/// Writes @p text to @p path atomically (detail/AtomicFile.h).
-void writeTextAtomic(const std::string& path, const std::string& text)
-{
-    detail::AtomicFile file(path, "cannot write " + inQuotes(path));
-    const char* p = text.data();
-    size_t left = text.size();
-    while (left > 0) {
-        const ssize_t n = ::write(file.descriptor(), p, left);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) file.fail(std::strerror(errno));
-        p += n;
-        left -= size_t(n);
-    }
-    file.sync();
-    file.commit();
-}
-
 /// Reads the manifest's fields, each checked; errors name the manifest and the field.
 class Fields
 {
@@ -237,7 +220,7 @@ void writeBrickManifest(const std::string& path, const BrickManifest& m)
         text += "\n  ]";
     }
     text += "\n}\n";
-    writeTextAtomic(path, text);
+    detail::writeTextAtomic(path, text);
 }
 
 BrickManifest readBrickManifest(const std::string& path)

@@ -233,10 +233,12 @@ openvdb::FloatGrid::Ptr meshToSdfBricks(const TriangleMesh& mesh, const MeshToSd
     return grid;
 }
 
-BrickFinish brickFinishFor(const TriangleMesh& mesh, const MeshToSdfOptions& o)
+namespace {
+/// The finish of a conversion of @p mesh with @p o whose parts were made with sign @p sign.
+BrickFinish finishWithSign(const TriangleMesh& mesh, const MeshToSdfOptions& o, SignMode sign)
 {
     BrickFinish f;
-    f.sign = checkDistributable(mesh, o);
+    f.sign = sign;
     const Widths w = resolveWidths(mesh, o);
     f.voxelSize = w.h;
     f.exteriorBandVoxels = w.exterior;
@@ -245,6 +247,12 @@ BrickFinish brickFinishFor(const TriangleMesh& mesh, const MeshToSdfOptions& o)
     f.gridName = o.gridName;
     f.source = o.source.empty() ? mesh.source : o.source;
     return f;
+}
+} // namespace
+
+BrickFinish brickFinishFor(const TriangleMesh& mesh, const MeshToSdfOptions& o)
+{
+    return finishWithSign(mesh, o, checkDistributable(mesh, o));
 }
 
 namespace distributed_internal {
@@ -338,16 +346,8 @@ openvdb::FloatGrid::Ptr finishBrickUnion(const TriangleMesh& mesh, const MeshToS
 {
     if (parts.empty() || !parts[0]) throw InvalidArgumentError("finishBrickUnion: no parts");
     // the sign the parts were made with (checkDistributable() resolved Auto when they were made)
-    BrickFinish f;
-    f.sign = signModeFromString(parts[0]->metaValue<std::string>(kSignMetadata));
-    const Widths w = resolveWidths(mesh, o);
-    f.voxelSize = w.h;
-    f.exteriorBandVoxels = w.exterior;
-    f.interiorBandVoxels = w.interior;
-    f.fillInterior = o.fillInterior;
-    f.gridName = o.gridName;
-    f.source = o.source.empty() ? mesh.source : o.source;
-    return finishBrickUnion(f, parts, statsOut);
+    const SignMode sign = signModeFromString(parts[0]->metaValue<std::string>(kSignMetadata));
+    return finishBrickUnion(finishWithSign(mesh, o, sign), parts, statsOut);
 }
 
 // A part's bytes: OpenVDB's io::Stream of the one grid (uncompressed, no statistics metadata),
