@@ -85,6 +85,48 @@ void printScanStats(std::ostream& os, const TetScanStats& s)
        << ", finish " << fmt("%.3f", s.secondsFinish) << "\n";
 }
 
+/// The statistics both distributed outputs record; `stepKey` names the gather or the pieces'
+/// write. Returns the slowest rank's seconds (for the summary line).
+double recordDistributedStats(OperatorArgs& args, const TriangleMesh& mesh, const DistributedStats& ds,
+                              const char* stepKey, double totalSeconds)
+{
+    double maxPeak = 0.0, maxSeconds = 0.0;
+    for (int r = 0; r < ds.ranks; ++r) {
+        maxPeak = std::max(maxPeak, ds.rankPeakMiB[size_t(r)]);
+        maxSeconds = std::max(maxSeconds, ds.rankSeconds[size_t(r)]);
+    }
+    args.stat("exterior_band_voxels", double(ds.sdf.exteriorBandVoxels));
+    args.stat("interior_band_voxels", double(ds.sdf.interiorBandVoxels));
+    args.stat("triangles", uint64_t(mesh.triangleCount()));
+    args.stat("sign", std::string(toString(ds.sdf.sign)));
+    args.stat("ranks", int64_t(ds.ranks));
+    args.stat("bricks", uint64_t(ds.bricks));
+    args.stat("convert_seconds", ds.seconds);
+    args.stat(stepKey, ds.secondsGather);
+    args.stat("max_rank_seconds", maxSeconds);
+    args.stat("max_rank_peak_mib", maxPeak);
+    args.stat("total_seconds", totalSeconds);
+    return maxSeconds;
+}
+
+/// `--report` of a distributed conversion: one line per rank (with its piece's size when the
+/// ranks wrote pieces).
+void printRankTable(std::ostream& out, const DistributedStats& ds, bool pieces)
+{
+    out << "  ranks: rank, bricks, estimated band voxels, triangles, active voxels, seconds, peak MiB (computed, "
+           "end)"
+        << (pieces ? ", piece MiB" : "") << "\n";
+    for (int r = 0; r < ds.ranks; ++r) {
+        out << "    " << r << ": " << withThousands(ds.rankBricks[size_t(r)]) << ", "
+            << withThousands(uint64_t(ds.rankEstimate[size_t(r)])) << ", "
+            << withThousands(ds.rankTriangles[size_t(r)]) << ", " << withThousands(ds.rankActiveVoxels[size_t(r)])
+            << ", " << fmt("%.2f", ds.rankSeconds[size_t(r)]) << ", " << fmt("%.1f", ds.rankPartPeakMiB[size_t(r)])
+            << ", " << fmt("%.1f", ds.rankPeakMiB[size_t(r)]);
+        if (pieces) out << ", " << fmt("%.1f", double(ds.rankBytes[size_t(r)]) / 1048576.0);
+        out << "\n";
+    }
+}
+
 /// `--distributed --distributed-output per-rank`, on rank 0: what the ranks wrote.
 void printPieces(OperatorArgs& args, const TriangleMesh& mesh, const MeshToSdfOptions& options,
                  const DistributedStats& ds, const std::string& output, const std::string& manifest, int64_t brick,
@@ -92,27 +134,15 @@ void printPieces(OperatorArgs& args, const TriangleMesh& mesh, const MeshToSdfOp
 {
     std::ostream& out = args.out();
     const int ranks = ds.ranks;
-    double maxPeak = 0.0, maxSeconds = 0.0, mib = 0.0;
+    double mib = 0.0;
     uint64_t active = 0;
     for (int r = 0; r < ranks; ++r) {
-        maxPeak = std::max(maxPeak, ds.rankPeakMiB[size_t(r)]);
-        maxSeconds = std::max(maxSeconds, ds.rankSeconds[size_t(r)]);
         mib += double(ds.rankBytes[size_t(r)]) / 1048576.0;
         active += ds.rankActiveVoxels[size_t(r)];
     }
     args.stat("voxel_size", ds.sdf.voxelSize);
     args.stat("band_active_voxels", active);
-    args.stat("exterior_band_voxels", double(ds.sdf.exteriorBandVoxels));
-    args.stat("interior_band_voxels", double(ds.sdf.interiorBandVoxels));
-    args.stat("triangles", uint64_t(mesh.triangleCount()));
-    args.stat("sign", std::string(toString(ds.sdf.sign)));
-    args.stat("ranks", int64_t(ranks));
-    args.stat("bricks", uint64_t(ds.bricks));
-    args.stat("convert_seconds", ds.seconds);
-    args.stat("write_seconds", ds.secondsGather);
-    args.stat("max_rank_seconds", maxSeconds);
-    args.stat("max_rank_peak_mib", maxPeak);
-    args.stat("total_seconds", totalSeconds);
+    const double maxSeconds = recordDistributedStats(args, mesh, ds, "write_seconds", totalSeconds);
     out << "levelforge: wrote " << manifest << " and " << ranks << (ranks == 1 ? " piece (" : " pieces (")
         << pieceFileName(output, 0) << (ranks > 1 ? " ... " + pieceFileName(output, ranks - 1) : std::string())
         << ", " << fmt("%.1f", mib) << " MiB); make " << output << " with: levelforge merge " << manifest << " "
@@ -130,17 +160,7 @@ void printPieces(OperatorArgs& args, const TriangleMesh& mesh, const MeshToSdfOp
         << "  time: " << fmt("%.2f", ds.seconds) << " s conversion (bricks " << fmt("%.2f", ds.secondsDecompose)
         << " s, slowest rank " << fmt("%.2f", maxSeconds) << " s, writing " << fmt("%.2f", ds.secondsGather)
         << " s), " << fmt("%.2f", totalSeconds) << " s total\n";
-    if (args.getBool("report")) {
-        out << "  ranks: rank, bricks, estimated band voxels, triangles, active voxels, seconds, peak MiB (computed, "
-               "end), piece MiB\n";
-        for (int r = 0; r < ranks; ++r)
-            out << "    " << r << ": " << withThousands(ds.rankBricks[size_t(r)]) << ", "
-                << withThousands(uint64_t(ds.rankEstimate[size_t(r)])) << ", "
-                << withThousands(ds.rankTriangles[size_t(r)]) << ", " << withThousands(ds.rankActiveVoxels[size_t(r)])
-                << ", " << fmt("%.2f", ds.rankSeconds[size_t(r)]) << ", " << fmt("%.1f", ds.rankPartPeakMiB[size_t(r)])
-                << ", " << fmt("%.1f", ds.rankPeakMiB[size_t(r)]) << ", "
-                << fmt("%.1f", double(ds.rankBytes[size_t(r)]) / 1048576.0) << "\n";
-    }
+    if (args.getBool("report")) printRankTable(out, ds, /*pieces=*/true);
 }
 
 /// `--distributed`: one conversion on every rank of `mpirun` (distributed/DistributedMeshToSdf.h).
@@ -247,25 +267,11 @@ void cookDistributed(OperatorArgs& args)
     if (!root) return;
     const double totalSeconds = secondsSince(t0);
     const double voxelSize = grid->voxelSize()[0];
-    double maxPeak = 0.0, maxSeconds = 0.0, gatheredMiB = 0.0;
-    for (int r = 0; r < ranks; ++r) {
-        if (r > 0) gatheredMiB += double(ds.rankBytes[size_t(r)]) / 1048576.0;
-        maxPeak = std::max(maxPeak, ds.rankPeakMiB[size_t(r)]);
-        maxSeconds = std::max(maxSeconds, ds.rankSeconds[size_t(r)]);
-    }
+    double gatheredMiB = 0.0;
+    for (int r = 1; r < ranks; ++r) gatheredMiB += double(ds.rankBytes[size_t(r)]) / 1048576.0;
     args.stat("voxel_size", voxelSize);
     args.stat("active_voxels", uint64_t(grid->activeVoxelCount()));
-    args.stat("exterior_band_voxels", double(ds.sdf.exteriorBandVoxels));
-    args.stat("interior_band_voxels", double(ds.sdf.interiorBandVoxels));
-    args.stat("triangles", uint64_t(mesh.triangleCount()));
-    args.stat("sign", std::string(toString(ds.sdf.sign)));
-    args.stat("ranks", int64_t(ranks));
-    args.stat("bricks", uint64_t(ds.bricks));
-    args.stat("convert_seconds", ds.seconds);
-    args.stat("gather_seconds", ds.secondsGather);
-    args.stat("max_rank_seconds", maxSeconds);
-    args.stat("max_rank_peak_mib", maxPeak);
-    args.stat("total_seconds", totalSeconds);
+    const double maxSeconds = recordDistributedStats(args, mesh, ds, "gather_seconds", totalSeconds);
     out << "levelforge: wrote " << output << "\n"
         << "  grid '" << grid->getName() << "': voxel size " << fmt("%.6g", voxelSize)
         << " (world units), " << withThousands(grid->activeVoxelCount()) << " active voxels\n"
@@ -283,15 +289,7 @@ void cookDistributed(OperatorArgs& args)
         << " s, gather " << fmt("%.2f", ds.secondsGather) << " s, finish " << fmt("%.2f", ds.secondsFinish)
         << " s), " << fmt("%.2f", totalSeconds) << " s total\n";
     if (report) {
-        out << "  ranks: rank, bricks, estimated band voxels, triangles, active voxels, seconds, peak MiB (computed, "
-               "end)\n";
-        for (int r = 0; r < ranks; ++r)
-            out << "    " << r << ": " << withThousands(ds.rankBricks[size_t(r)]) << ", "
-                << withThousands(uint64_t(ds.rankEstimate[size_t(r)])) << ", "
-                << withThousands(ds.rankTriangles[size_t(r)]) << ", " << withThousands(ds.rankActiveVoxels[size_t(r)])
-                << ", " << fmt("%.2f", ds.rankSeconds[size_t(r)]) << ", " << fmt("%.1f", ds.rankPartPeakMiB[size_t(r)])
-                << ", " << fmt("%.1f", ds.rankPeakMiB[size_t(r)])
-                << "\n";
+        printRankTable(out, ds, /*pieces=*/false);
         if (options.fillInterior)
             out << "  fill interior: " << withThousands(ds.sdf.filledVoxels) << " voxels activated (tiles by volume)\n";
     }

@@ -440,23 +440,12 @@ private:
     void rasterizeTriangle(const mesh_internal::PreparedTriangleBox& tri, const openvdb::CoordBBox& block,
                            openvdb::MaskTree& mask) const
     {
-        const double r = mCtx.limit + mCtx.margin;
-        const openvdb::Coord dim = block.dim();
-        if (mBlock == 1 && block.volume() <= 8) {
-            // a few leaves: each one's test, without the halving's tests of the blocks above
-            // them (a leaf's dilated box lies inside theirs: it meets the triangle only if they do)
-            for (auto it = block.begin(); it; ++it) {
-                const openvdb::Coord& l = *it;
-                const Vec3d lo(l.x() * 8.0 + 0.5 - r, l.y() * 8.0 + 0.5 - r, l.z() * 8.0 + 0.5 - r);
-                const Vec3d hi(l.x() * 8.0 + 7.5 + r, l.y() * 8.0 + 7.5 + r, l.z() * 8.0 + 7.5 + r);
-                if (tri.overlaps((lo + hi) * 0.5, (hi - lo) * 0.5)) mask.setValueOn(l);
-            }
-            return;
-        }
-        if (mBlock == 1) {
+        if (mBlock == 1) { // single leaves: no halving (a leaf's dilated box lies inside its blocks')
             columns(tri, block, mask);
             return;
         }
+        const double r = mCtx.limit + mCtx.margin;
+        const openvdb::Coord dim = block.dim();
         const Vec3d lo(block.min().x() * 8.0 + 0.5 - r, block.min().y() * 8.0 + 0.5 - r, block.min().z() * 8.0 + 0.5 - r);
         const Vec3d hi(block.max().x() * 8.0 + 7.5 + r, block.max().y() * 8.0 + 7.5 + r, block.max().z() * 8.0 + 7.5 + r);
         if (!tri.overlaps((lo + hi) * 0.5, (hi - lo) * 0.5)) return;
@@ -472,7 +461,7 @@ private:
         rasterizeTriangle(tri, h, mask);
     }
 
-    /// A block of more than 8 single leaves: column by column along the normal's dominant axis
+    /// A block of single leaves: column by column along the normal's dominant axis
     /// w, the leaves whose dilated boxes the triangle's plane crosses (an interval of w from the
     /// plane's extremes over the column's dilated cross-section, widened for rounding), each
     /// then tested on every axis. The same leaves as testing every leaf of the block, in time
